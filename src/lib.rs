@@ -1,0 +1,9 @@
+//! polbrdf: polarized BRDFs of particulate layers from first principles.
+//!
+//! Layers (dependencies point downwards only):
+//! `cli` -> `solver` -> `physics`. `physics` and `solver` are pure: no I/O.
+//! Conventions (units, Stokes frames, signs) are in `docs/conventions.md`.
+
+pub mod cli;
+pub mod physics;
+pub mod solver;

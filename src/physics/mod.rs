@@ -1,0 +1,85 @@
+//! Particle optics: everything that turns "particles of material X, radius r,
+//! in a binder of index n" into single-scattering inputs of the solver.
+//!
+//! Pure: no I/O, no global state. Conventions: `docs/conventions.md`.
+
+pub mod expansion;
+pub mod fresnel;
+pub mod materials;
+pub mod mie;
+pub mod psd;
+pub mod quadrature;
+pub mod stokes;
+pub mod wigner;
+
+use serde::{Deserialize, Serialize};
+
+/// Complex number type used for refractive indices and Mie amplitudes.
+pub type C64 = num_complex::Complex64;
+
+/// Complex refractive index `m = n + i k` (conventions §2: `exp(-iωt)`, `k ≥ 0` absorbs).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct RefractiveIndex {
+    /// Real part.
+    pub n: f64,
+    /// Imaginary part, `≥ 0` for absorbing media.
+    pub k: f64,
+}
+
+impl RefractiveIndex {
+    /// A new index `n + i k`.
+    pub const fn new(n: f64, k: f64) -> Self {
+        Self { n, k }
+    }
+
+    /// As a complex number.
+    pub fn as_complex(self) -> C64 {
+        C64::new(self.n, self.k)
+    }
+}
+
+/// The six normalised scattering-matrix functions (conventions §3) sampled at
+/// the cosines `mu` of the scattering angle.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct ScatteringMatrixSamples {
+    /// `cos Θ` of each sample.
+    pub mu: Vec<f64>,
+    /// `F11`.
+    pub a1: Vec<f64>,
+    /// `F22`.
+    pub a2: Vec<f64>,
+    /// `F33`.
+    pub a3: Vec<f64>,
+    /// `F44`.
+    pub a4: Vec<f64>,
+    /// `F12`.
+    pub b1: Vec<f64>,
+    /// `F34`.
+    pub b2: Vec<f64>,
+}
+
+/// Errors of the physics layer. Each names the quantity and the allowed range.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum PhysicsError {
+    /// A parameter is outside the range in which the method is validated.
+    #[error("{name} = {value} is outside the validated range {range}")]
+    OutOfRange {
+        /// Parameter name, as in the API (e.g. `size_parameter`).
+        name: &'static str,
+        /// The offending value.
+        value: f64,
+        /// Human-readable allowed range.
+        range: String,
+    },
+    /// A material name that is not in the built-in library.
+    #[error("unknown material '{name}' (known: {known})")]
+    UnknownMaterial {
+        /// The name asked for.
+        name: String,
+        /// Comma-separated list of known names.
+        known: String,
+    },
+    /// Any other invalid input, with a message naming the argument.
+    #[error("{0}")]
+    Invalid(String),
+}

@@ -1,0 +1,1 @@
+//! Vector radiative transfer by discrete ordinates (stub).

@@ -2,8 +2,9 @@
 //!
 //! # Convention (conventions §4)
 //!
-//! The standard Wigner d-function (Varshalovich et al. 1988 §4.3; Edmonds
-//! 1957 eq. 4.1.23; the `d^l_{mn}` of Mishchenko, Travis & Lacis 2002, App. B):
+//! The standard Wigner d-function (Varshalovich, Moskalev & Khersonskii 1988,
+//! ch. 4; Edmonds 1957; the `d^l_{mn}` of Mishchenko, Travis & Lacis 2002,
+//! App. B), with first index `m` and second index `n`:
 //!
 //! ```text
 //! d^l_{mn}(θ) = Σ_k (−1)^{k+m−n} √((l+m)!(l−m)!(l+n)!(l−n)!)
@@ -19,14 +20,14 @@
 //! # Computation
 //!
 //! With `μ = cos θ`, `s₀ = max(|m|,|n|)`, the starting value (Mishchenko et al.
-//! 2002, eq. B.24) is
+//! 2002, App. B) is
 //!
 //! ```text
 //! d^{s₀}_{mn}(θ) = ξ_{mn} √( (2s₀)! / (|m−n|)! (|m+n|)! ) · sin(θ/2)^{|m−n|} cos(θ/2)^{|m+n|},
 //! ξ_{mn} = 1 if n ≥ m, (−1)^{m−n} if n < m,
 //! ```
 //!
-//! (`|m−n| + |m+n| = 2 s₀`), and `d^{s₀−1}_{mn} = 0`. Upward in `l` (eq. B.22):
+//! (`|m−n| + |m+n| = 2 s₀`), and `d^{s₀−1}_{mn} = 0`. Upward in `l` (ibid.):
 //!
 //! ```text
 //! s √((s+1)²−m²) √((s+1)²−n²) d^{s+1}_{mn}
@@ -34,7 +35,16 @@
 //! ```
 //!
 //! (for `m = n = 0` and `s = 0` this is read as `d^1_00 = μ`). The recurrence
-//! is stable upward in `l`; it has been checked here to `l = 20 000`.
+//! is stable upward in `l`; it is checked here to `l = 50 000` against
+//! multiprecision values (absolute error `< 4e-15`).
+//!
+//! Two arrangements keep it accurate: for `μ < 0` the reflection
+//! `d^l_{mn}(−μ) = (−1)^{l+m} d^l_{m,−n}(μ)` is applied so that the
+//! recurrence always runs at `μ ≥ 0`; for `μ > ½` it runs on `u = 1 − μ` and
+//! the differences `d^s − d^{s−1}` (see `wigner_d_nonneg`), which near
+//! `θ = 0` avoids the loss of relative accuracy of the plain form
+//! (unitarity error at `l = 1500`, `μ = 0.999999`: `2e-12` plain, `1e-14` in
+//! difference form).
 //!
 //! The starting value can underflow for large `s₀` near `θ = 0` or `π`
 //! (e.g. `sin(θ/2)^{3000}`), while `d^l_{mn}` becomes `O(l^{-1/2})` further up

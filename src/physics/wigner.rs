@@ -354,7 +354,7 @@ fn start_value(m: i32, n: i32, x: f64) -> Scaled {
         .mul(Scaled::new(sin_half).powi(a))
         .mul(Scaled::new(cos_half).powi(b));
     // ξ_{mn} = (−1)^{m−n} if n < m
-    if n < m && (m - n) % 2 != 0 {
+    if n < m && (i64::from(m) - i64::from(n)) % 2 != 0 {
         v.mant = -v.mant;
     }
     v

@@ -7,3 +7,4 @@
 pub mod cli;
 pub mod physics;
 pub mod solver;
+pub mod spec;

@@ -1,4 +1,9 @@
-//! Command-line front door (`polbrdf ...`).
+//! Command-line front door (`polbrdf ...`). Thin: parses arguments, calls the
+//! library, prints JSON; errors are one line on stderr and a non-zero exit.
+
+pub mod bench;
+pub mod mie;
+pub mod solve;
 
 use clap::{Parser, Subcommand};
 
@@ -12,17 +17,44 @@ pub struct Cli {
 
 #[derive(Debug, Subcommand)]
 enum Command {
-    /// Print the crate version.
-    Version,
+    /// Mie theory for one particle population: efficiencies, scattering matrix, expansion.
+    Mie(mie::MieArgs),
+    /// Solve a material spec: BRDF at direction pairs, internal field.
+    Solve {
+        /// The material spec (JSON, docs/spec.md).
+        spec: String,
+        /// Direction pairs: {"points": [{"theta_i_deg", "phi_i_deg", "theta_o_deg", "phi_o_deg"}]}.
+        #[arg(long)]
+        points: Option<String>,
+        /// Internal field request: {"mu0", "phi0_deg", "stokes", "tau", "mu", "phi_deg"}.
+        #[arg(long)]
+        field: Option<String>,
+    },
+    /// Benchmarks (timings go to docs/performance.md).
+    #[command(subcommand)]
+    Bench(bench::BenchCommand),
 }
 
 /// Parse arguments, run, and return the process exit code.
 pub fn main() -> i32 {
     let cli = Cli::parse();
-    match cli.command {
-        Command::Version => {
-            println!("{}", env!("CARGO_PKG_VERSION"));
+    let result = match cli.command {
+        Command::Mie(args) => mie::run(&args),
+        Command::Solve {
+            spec,
+            points,
+            field,
+        } => solve::run(&spec, points.as_deref(), field.as_deref()),
+        Command::Bench(b) => bench::run(&b),
+    };
+    match result {
+        Ok(v) => {
+            println!("{}", serde_json::to_string_pretty(&v).expect("JSON"));
             0
+        }
+        Err(e) => {
+            eprintln!("polbrdf: {e}");
+            2
         }
     }
 }

@@ -1,1 +1,620 @@
-//! Vector radiative transfer by discrete ordinates (stub).
+//! Vector radiative transfer by discrete ordinates (seed §3.5–3.6; Siewert
+//! 2000; adding–doubling after Hansen & Travis 1974 and de Haan et al. 1987).
+//!
+//! Per Fourier azimuth order `m` the solver builds the phase-matrix kernel of
+//! every homogeneous layer ([`phase`]), the layer's reflection/transmission
+//! operators by a thin-layer start and doubling ([`layer`]), combines the
+//! layers and the base by the adding equations, and keeps the response of the
+//! whole stack in user directions to beams in user directions. The BRDF at
+//! any azimuth is then the Fourier sum (conventions §6).
+//!
+//! Pure: no I/O, deterministic. Parallel over Fourier orders (rayon) with
+//! faer sequential underneath.
+
+pub mod layer;
+pub mod phase;
+
+use crate::physics::expansion::GreekCoefficients;
+use crate::physics::quadrature::double_gauss;
+use crate::physics::stokes::Mueller;
+use faer::Mat;
+use layer::{Kernel, Ops, add, add_mirror, thin_layer};
+use phase::{Gsf, a_matrix};
+use rayon::prelude::*;
+
+/// Optical thickness of a layer.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Thickness {
+    /// A finite slab, `τ ≥ 0`.
+    Finite(f64),
+    /// Semi-infinite (must be the last layer; the base is then irrelevant).
+    Infinite,
+}
+
+/// One homogeneous layer: thickness, single-scattering albedo and the Greek
+/// coefficients of its scattering matrix (conventions §4).
+#[derive(Clone, Debug)]
+pub struct Layer {
+    /// Optical thickness.
+    pub thickness: Thickness,
+    /// Single-scattering albedo `ω ∈ [0, 1]`.
+    pub albedo: f64,
+    /// Expansion coefficients (β_0 = 1).
+    pub coef: GreekCoefficients,
+}
+
+/// The lower boundary.
+#[derive(Clone)]
+pub enum Base {
+    /// Nothing is reflected.
+    Black,
+    /// Depolarizing Lambertian reflector.
+    Lambertian {
+        /// Hemispherical reflectance in `[0, 1]`.
+        albedo: f64,
+    },
+    /// Smooth specular interface (Fresnel); `mueller(μ)` is its reflection
+    /// Mueller matrix at incidence cosine `μ` in meridian frames
+    /// (`physics::fresnel`).
+    Mirror {
+        /// Reflection Mueller matrix as a function of the incidence cosine.
+        mueller: std::sync::Arc<dyn Fn(f64) -> Mueller + Send + Sync>,
+    },
+}
+
+impl std::fmt::Debug for Base {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Base::Black => write!(f, "Black"),
+            Base::Lambertian { albedo } => write!(f, "Lambertian {{ albedo: {albedo} }}"),
+            Base::Mirror { mueller } => {
+                write!(f, "Mirror {{ normal incidence: {:?} }}", mueller(1.0))
+            }
+        }
+    }
+}
+
+/// Numerical settings.
+#[derive(Clone, Debug)]
+pub struct Settings {
+    /// Quadrature points per hemisphere.
+    pub streams: usize,
+    /// Vector (4 Stokes components) or scalar RTE with `a1` only.
+    pub polarized: bool,
+    /// Thickness of the thin starting layer relative to the smallest
+    /// quadrature cosine (diamond start; its error scales as the square).
+    pub start_factor: f64,
+    /// Highest Fourier order to compute (`None`: all orders the phase
+    /// matrices carry).
+    pub max_order: Option<usize>,
+}
+
+impl Default for Settings {
+    fn default() -> Self {
+        Self {
+            streams: 16,
+            polarized: true,
+            start_factor: 1e-3,
+            max_order: None,
+        }
+    }
+}
+
+/// A problem: layers top to bottom on a base.
+#[derive(Clone, Debug)]
+pub struct Problem {
+    /// Layers, top first.
+    pub layers: Vec<Layer>,
+    /// Lower boundary.
+    pub base: Base,
+    /// Numerical settings.
+    pub settings: Settings,
+}
+
+/// Typed solver errors.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum SolverError {
+    /// The input is not a valid problem.
+    #[error("invalid problem: {0}")]
+    Invalid(String),
+    /// A non-finite number appeared (never returned silently).
+    #[error("numerical failure: {0}")]
+    NonFinite(String),
+}
+
+/// The Fourier coefficients of the reflected radiance for beams along user
+/// directions, observed along user directions: `rho[m]` is `nu × nu` with rows
+/// `(u, Stokes out)` and columns `(v, Stokes in)` (the S1 set of
+/// [`phase`]), for a beam whose Fourier input is a unit delta in `ν`.
+#[derive(Clone, Debug)]
+pub struct ReflectionFourier {
+    /// Stokes components per direction (4 or 1).
+    pub ns: usize,
+    /// User cosines (outgoing and incident).
+    pub mu: Vec<f64>,
+    /// One matrix per order `m = 0..`.
+    pub rho: Vec<Mat<f64>>,
+    /// Total direct transmission of the stack along each user direction
+    /// (down and back up is its square), for the specular term.
+    pub direct: Vec<f64>,
+}
+
+impl ReflectionFourier {
+    /// The Mueller BRDF (1/sr, conventions §6) for incident cosine `mu[iv]`,
+    /// outgoing `mu[iu]` and **propagation** azimuth difference `dphi_prop`
+    /// (radians, 0 = forward side). Scalar results fill `[0][0]` only.
+    ///
+    /// `f μ_0 = Σ_m (2 − δ_m0)/(2π) [bd(ρ^m) cos mΔφ + od(ρ^m) sin mΔφ]`
+    /// with `od` as in [`phase`] (UV←IQ block `+`, IQ←UV block `−`).
+    pub fn brdf(&self, iu: usize, iv: usize, dphi_prop: f64) -> Mueller {
+        let ns = self.ns;
+        let mut f = [[0.0; 4]; 4];
+        for (m, rho) in self.rho.iter().enumerate() {
+            let w = if m == 0 { 1.0 } else { 2.0 } / (2.0 * std::f64::consts::PI);
+            let (s, c) = (m as f64 * dphi_prop).sin_cos();
+            for p in 0..ns {
+                for q in 0..ns {
+                    let v = rho[(iu * ns + p, iv * ns + q)];
+                    let term = match (p < 2, q < 2) {
+                        (true, true) | (false, false) => v * c,
+                        (false, true) => v * s,
+                        (true, false) => -v * s,
+                    };
+                    f[p][q] += w * term;
+                }
+            }
+        }
+        let mu0 = self.mu[iv];
+        for row in &mut f {
+            for x in row.iter_mut() {
+                *x /= mu0;
+            }
+        }
+        f
+    }
+}
+
+/// Directions of the discretisation.
+struct Grid {
+    ns: usize,
+    mu_q: Vec<f64>,
+    w_q: Vec<f64>,
+    mu_u: Vec<f64>,
+}
+
+/// Phase kernel of one layer for order `m`.
+fn kernel(grid: &Grid, coef: &GreekCoefficients, albedo: f64, m: usize, polarized: bool) -> Kernel {
+    let ns = grid.ns;
+    let l_max = coef.beta.len().saturating_sub(1);
+    let gsf = |mus: &[f64], sign: f64| -> Vec<Gsf> {
+        mus.iter()
+            .map(|&mu| Gsf::new(m, sign * mu, l_max, polarized))
+            .collect()
+    };
+    // Index 0 = upward (+μ), 1 = downward (−μ).
+    let gq = [gsf(&grid.mu_q, 1.0), gsf(&grid.mu_q, -1.0)];
+    let gu = [gsf(&grid.mu_u, 1.0), gsf(&grid.mu_u, -1.0)];
+    let block = |out: &[Gsf], inp: &[Gsf], w: Option<&[f64]>| -> Mat<f64> {
+        let mut mat = Mat::zeros(out.len() * ns, inp.len() * ns);
+        for (i, go) in out.iter().enumerate() {
+            for (j, gi) in inp.iter().enumerate() {
+                let a = a_matrix(coef, m, go, gi, polarized);
+                let f = 0.5 * albedo * w.map_or(1.0, |w| w[j]);
+                for p in 0..ns {
+                    for q in 0..ns {
+                        mat[(i * ns + p, j * ns + q)] = f * a[p][q];
+                    }
+                }
+            }
+        }
+        mat
+    };
+    let wq = Some(grid.w_q.as_slice());
+    let b4 = |out: &[Vec<Gsf>; 2], inp: &[Vec<Gsf>; 2], w: Option<&[f64]>| -> [[Mat<f64>; 2]; 2] {
+        std::array::from_fn(|s| std::array::from_fn(|t| block(&out[s], &inp[t], w)))
+    };
+    Kernel {
+        qq: b4(&gq, &gq, wq),
+        uq: b4(&gu, &gq, wq),
+        qb: b4(&gq, &gu, None),
+        ub: b4(&gu, &gu, None),
+    }
+}
+
+/// Operators of one homogeneous layer for one order: thin start + doubling.
+fn layer_ops(grid: &Grid, layer: &Layer, m: usize, settings: &Settings) -> Ops {
+    let ns = grid.ns;
+    let n = grid.mu_q.len() * ns;
+    let nu = grid.mu_u.len() * ns;
+    let k = kernel(grid, &layer.coef, layer.albedo, m, settings.polarized);
+    let mu_min = grid.mu_q[0];
+    let d_max = settings.start_factor * mu_min;
+    match layer.thickness {
+        Thickness::Finite(tau) => {
+            if tau <= 0.0 {
+                return Ops::vacuum(n, nu, ns);
+            }
+            let mut doublings = 0u32;
+            let mut delta = tau;
+            while delta > d_max && doublings < 200 {
+                delta *= 0.5;
+                doublings += 1;
+            }
+            let mut ops = thin_layer(&k, &grid.mu_q, &grid.mu_u, ns, delta);
+            for _ in 0..doublings {
+                ops = add(&ops, &ops);
+            }
+            ops
+        }
+        Thickness::Infinite => {
+            let mut ops = thin_layer(&k, &grid.mu_q, &grid.mu_u, ns, d_max);
+            let mut tau = d_max;
+            // Double until nothing is transmitted (or 2^200 start layers).
+            for _ in 0..200 {
+                ops = add(&ops, &ops);
+                tau *= 2.0;
+                if ops.max_abs_t() < 1e-15 && tau > 1.0 {
+                    break;
+                }
+            }
+            // A semi-infinite layer transmits nothing.
+            ops.t.fill(0.0);
+            ops.ts.fill(0.0);
+            ops.tb.fill(0.0);
+            ops.tbs.fill(0.0);
+            ops.tu.fill(0.0);
+            ops.tus.fill(0.0);
+            ops.tuu.fill(0.0);
+            ops.tuus.fill(0.0);
+            ops.eu.iter_mut().for_each(|e| *e = 0.0);
+            ops
+        }
+    }
+}
+
+/// Operators of a Lambertian base for order `m` (only `m = 0` reflects):
+/// `I_up = (a/π) ∫ I_down μ' dΩ' = 2a Σ_j w_j μ_j x_j` on the I component.
+fn lambertian_ops(grid: &Grid, albedo: f64, m: usize) -> Ops {
+    let ns = grid.ns;
+    let n = grid.mu_q.len() * ns;
+    let nu = grid.mu_u.len() * ns;
+    let mut o = Ops::reflector(n, nu, ns);
+    if m != 0 {
+        return o;
+    }
+    for i in 0..grid.mu_q.len() {
+        for (j, (&mu, &w)) in grid.mu_q.iter().zip(&grid.w_q).enumerate() {
+            o.r[(i * ns, j * ns)] = 2.0 * albedo * w * mu;
+        }
+        for (v, &mv) in grid.mu_u.iter().enumerate() {
+            o.rb[(i * ns, v * ns)] = 2.0 * albedo * mv;
+        }
+    }
+    for u in 0..grid.mu_u.len() {
+        for (j, (&mu, &w)) in grid.mu_q.iter().zip(&grid.w_q).enumerate() {
+            o.ru[(u * ns, j * ns)] = 2.0 * albedo * w * mu;
+        }
+        for (v, &mv) in grid.mu_u.iter().enumerate() {
+            o.ruu[(u * ns, v * ns)] = 2.0 * albedo * mv;
+        }
+    }
+    o
+}
+
+/// Block-diagonal matrix of 4×4 (or 1×1) specular maps for the cosines `mus`.
+fn mirror_blocks(mus: &[f64], ns: usize, mueller: &dyn Fn(f64) -> Mueller) -> Mat<f64> {
+    let mut m = Mat::zeros(mus.len() * ns, mus.len() * ns);
+    for (i, &mu) in mus.iter().enumerate() {
+        let f = mueller(mu);
+        for p in 0..ns {
+            for q in 0..ns {
+                m[(i * ns + p, i * ns + q)] = f[p][q];
+            }
+        }
+    }
+    m
+}
+
+/// Highest order any layer's phase matrix carries.
+fn order_count(problem: &Problem) -> usize {
+    let l = problem
+        .layers
+        .iter()
+        .map(|l| l.coef.beta.len())
+        .max()
+        .unwrap_or(1);
+    let m = problem.settings.max_order.map_or(l, |mo| (mo + 1).min(l));
+    m.max(1)
+}
+
+fn validate(problem: &Problem, mu_user: &[f64]) -> Result<(), SolverError> {
+    let s = &problem.settings;
+    if s.streams == 0 {
+        return Err(SolverError::Invalid("solver.streams must be ≥ 1".into()));
+    }
+    if problem.layers.is_empty() {
+        return Err(SolverError::Invalid(
+            "at least one layer is required".into(),
+        ));
+    }
+    for (i, l) in problem.layers.iter().enumerate() {
+        if !(0.0..=1.0).contains(&l.albedo) {
+            return Err(SolverError::Invalid(format!(
+                "layers[{i}].albedo = {} is outside [0, 1]",
+                l.albedo
+            )));
+        }
+        match l.thickness {
+            Thickness::Finite(t) if !(t >= 0.0 && t.is_finite()) => {
+                return Err(SolverError::Invalid(format!(
+                    "layers[{i}].optical_thickness = {t} must be a finite number ≥ 0"
+                )));
+            }
+            Thickness::Infinite if i + 1 != problem.layers.len() => {
+                return Err(SolverError::Invalid(format!(
+                    "layers[{i}]: only the last layer may be infinite"
+                )));
+            }
+            _ => {}
+        }
+    }
+    for &mu in mu_user {
+        if !(mu > 0.0 && mu <= 1.0) {
+            return Err(SolverError::Invalid(format!(
+                "direction cosine {mu} is outside (0, 1]"
+            )));
+        }
+    }
+    Ok(())
+}
+
+/// Reflection of the stack for beams and observers along the user cosines
+/// `mu_user` (each in `(0, 1]`), all Fourier orders.
+pub fn reflection(problem: &Problem, mu_user: &[f64]) -> Result<ReflectionFourier, SolverError> {
+    validate(problem, mu_user)?;
+    let s = &problem.settings;
+    let ns = if s.polarized { 4 } else { 1 };
+    let (mu_q, w_q) = double_gauss(s.streams);
+    let grid = Grid {
+        ns,
+        mu_q,
+        w_q,
+        mu_u: mu_user.to_vec(),
+    };
+    let orders = order_count(problem);
+    let semi_infinite = matches!(
+        problem.layers.last().map(|l| l.thickness),
+        Some(Thickness::Infinite)
+    );
+    let rho: Vec<Mat<f64>> = (0..orders)
+        .into_par_iter()
+        .map(|m| {
+            let mut stack: Option<Ops> = None;
+            for layer in &problem.layers {
+                if matches!(layer.thickness, Thickness::Finite(t) if t <= 0.0) {
+                    continue;
+                }
+                let ops = layer_ops(&grid, layer, m, s);
+                stack = Some(match stack {
+                    None => ops,
+                    Some(top) => add(&top, &ops),
+                });
+            }
+            let n = grid.mu_q.len() * ns;
+            let nu = grid.mu_u.len() * ns;
+            let stack = stack.unwrap_or_else(|| Ops::vacuum(n, nu, ns));
+            if semi_infinite {
+                return stack.ruu;
+            }
+            match &problem.base {
+                Base::Black => stack.ruu,
+                Base::Lambertian { albedo } => add(&stack, &lambertian_ops(&grid, *albedo, m)).ruu,
+                Base::Mirror { mueller } => {
+                    let mq = mirror_blocks(&grid.mu_q, ns, mueller.as_ref());
+                    let mu = mirror_blocks(&grid.mu_u, ns, mueller.as_ref());
+                    add_mirror(&stack, &mq, &mu).ruu
+                }
+            }
+        })
+        .collect();
+    for (m, r) in rho.iter().enumerate() {
+        if !layer::max_abs(r.as_ref()).is_finite() {
+            return Err(SolverError::NonFinite(format!("Fourier order {m}")));
+        }
+    }
+    let tau_total: f64 = problem
+        .layers
+        .iter()
+        .map(|l| match l.thickness {
+            Thickness::Finite(t) => t,
+            Thickness::Infinite => f64::INFINITY,
+        })
+        .sum();
+    Ok(ReflectionFourier {
+        ns,
+        mu: grid.mu_u.clone(),
+        rho,
+        direct: grid.mu_u.iter().map(|m| (-tau_total / m).exp()).collect(),
+    })
+}
+
+/// Fourier sum of a user-by-beam response (no `1/μ_0`): the Stokes radiance
+/// along user direction `iu` for a beam along `iv` of unit flux normal to the
+/// beam, as a Mueller matrix acting on the beam's Stokes vector, at
+/// propagation azimuth difference `dphi_prop`.
+pub fn fourier_sum(rho: &[Mat<f64>], ns: usize, iu: usize, iv: usize, dphi_prop: f64) -> Mueller {
+    let mut f = [[0.0; 4]; 4];
+    for (m, r) in rho.iter().enumerate() {
+        let w = if m == 0 { 1.0 } else { 2.0 } / (2.0 * std::f64::consts::PI);
+        let (s, c) = (m as f64 * dphi_prop).sin_cos();
+        for p in 0..ns {
+            for q in 0..ns {
+                let v = r[(iu * ns + p, iv * ns + q)];
+                let term = match (p < 2, q < 2) {
+                    (true, true) | (false, false) => v * c,
+                    (false, true) => v * s,
+                    (true, false) => -v * s,
+                };
+                f[p][q] += w * term;
+            }
+        }
+    }
+    f
+}
+
+/// Diffuse radiance field inside the stack at given optical depths for beams
+/// along the user directions, as Fourier coefficients: `up[k][m]` and
+/// `down[k][m]` are `nu × nu` (rows: user direction travelling up / down at
+/// depth `depths[k]`, columns: beam direction at the top).
+#[derive(Clone, Debug)]
+pub struct FieldFourier {
+    /// Stokes components per direction.
+    pub ns: usize,
+    /// User cosines.
+    pub mu: Vec<f64>,
+    /// Depths (optical depth from the top).
+    pub depths: Vec<f64>,
+    /// Upward radiance per depth and order.
+    pub up: Vec<Vec<Mat<f64>>>,
+    /// Downward radiance per depth and order.
+    pub down: Vec<Vec<Mat<f64>>>,
+}
+
+/// Operators of the layers between optical depths `from` and `to` (from the
+/// top), in order `m`; `to = ∞` runs to the bottom of the stack.
+fn slab_ops(grid: &Grid, problem: &Problem, m: usize, from: f64, to: f64) -> Ops {
+    let ns = grid.ns;
+    let n = grid.mu_q.len() * ns;
+    let nu = grid.mu_u.len() * ns;
+    let mut stack: Option<Ops> = None;
+    let mut top = 0.0;
+    for layer in &problem.layers {
+        let (bottom, infinite) = match layer.thickness {
+            Thickness::Finite(t) => (top + t, false),
+            Thickness::Infinite => (f64::INFINITY, true),
+        };
+        let lo = top.max(from);
+        let hi = bottom.min(to);
+        if hi > lo {
+            let part = if infinite && hi.is_infinite() {
+                Layer {
+                    thickness: Thickness::Infinite,
+                    ..layer.clone()
+                }
+            } else {
+                Layer {
+                    thickness: Thickness::Finite(hi - lo),
+                    ..layer.clone()
+                }
+            };
+            let ops = layer_ops(grid, &part, m, &problem.settings);
+            stack = Some(match stack {
+                None => ops,
+                Some(s) => add(&s, &ops),
+            });
+        }
+        top = bottom;
+    }
+    stack.unwrap_or_else(|| Ops::vacuum(n, nu, ns))
+}
+
+/// The internal diffuse field (seed §4.1 validation; Siewert 2000 tables) at
+/// optical depths `depths` for beams and observers along `mu_user`.
+/// Mirror bases are not supported here.
+pub fn internal_field(
+    problem: &Problem,
+    mu_user: &[f64],
+    depths: &[f64],
+) -> Result<FieldFourier, SolverError> {
+    validate(problem, mu_user)?;
+    if matches!(problem.base, Base::Mirror { .. }) {
+        return Err(SolverError::Invalid(
+            "the internal field is not available over a mirror base".into(),
+        ));
+    }
+    let s = &problem.settings;
+    let ns = if s.polarized { 4 } else { 1 };
+    let (mu_q, w_q) = double_gauss(s.streams);
+    let grid = Grid {
+        ns,
+        mu_q,
+        w_q,
+        mu_u: mu_user.to_vec(),
+    };
+    let orders = order_count(problem);
+    let per_order: Vec<Vec<(Mat<f64>, Mat<f64>)>> = (0..orders)
+        .into_par_iter()
+        .map(|m| {
+            depths
+                .iter()
+                .map(|&tau| {
+                    let a = slab_ops(&grid, problem, m, 0.0, tau);
+                    let mut b = slab_ops(&grid, problem, m, tau, f64::INFINITY);
+                    if let Base::Lambertian { albedo } = problem.base {
+                        b = add(&b, &lambertian_ops(&grid, albedo, m));
+                    }
+                    interface_field(&a, &b)
+                })
+                .collect()
+        })
+        .collect();
+    let mut up = vec![Vec::with_capacity(orders); depths.len()];
+    let mut down = vec![Vec::with_capacity(orders); depths.len()];
+    for order in per_order {
+        for (k, (u, d)) in order.into_iter().enumerate() {
+            if !layer::max_abs(u.as_ref()).is_finite() || !layer::max_abs(d.as_ref()).is_finite() {
+                return Err(SolverError::NonFinite(format!(
+                    "field at depth {}",
+                    depths[k]
+                )));
+            }
+            up[k].push(u);
+            down[k].push(d);
+        }
+    }
+    Ok(FieldFourier {
+        ns,
+        mu: grid.mu_u,
+        depths: depths.to_vec(),
+        up,
+        down,
+    })
+}
+
+/// Diffuse user radiance at the interface between `a` (above) and `b`
+/// (below, base included) for a beam entering the top of `a`:
+/// `D = G (Tb_a + R*_a Rb_b E_a)`, `U = R_b D + Rb_b E_a`; upward user radiance
+/// is `Ru_b D + Ruu_b E_a`, downward `Tuu_a + Ru*_a U`.
+fn interface_field(a: &Ops, b: &Ops) -> (Mat<f64>, Mat<f64>) {
+    use faer::prelude::*;
+    let n = a.n;
+    let ns = a.ns;
+    let mut rbb_ea = b.rb.clone();
+    for (v, &e) in a.eu.iter().enumerate() {
+        for s in 0..ns {
+            for i in 0..n {
+                rbb_ea[(i, v * ns + s)] *= e;
+            }
+        }
+    }
+    let mut g = layer::mm(a.rs.as_ref(), b.r.as_ref());
+    for i in 0..n {
+        for j in 0..n {
+            g[(i, j)] = if i == j { 1.0 } else { 0.0 } - g[(i, j)];
+        }
+    }
+    let rhs = &a.tb + layer::mm(a.rs.as_ref(), rbb_ea.as_ref());
+    let d = g.partial_piv_lu().solve(&rhs);
+    let u = layer::mm(b.r.as_ref(), d.as_ref()) + &rbb_ea;
+    let mut ruub_ea = b.ruu.clone();
+    for (v, &e) in a.eu.iter().enumerate() {
+        for s in 0..ns {
+            for i in 0..ruub_ea.nrows() {
+                ruub_ea[(i, v * ns + s)] *= e;
+            }
+        }
+    }
+    let up = layer::mm(b.ru.as_ref(), d.as_ref()) + ruub_ea;
+    let down = &a.tuu + layer::mm(a.rus.as_ref(), u.as_ref());
+    (up, down)
+}

@@ -1,0 +1,147 @@
+//! `polbrdf bench ...`: timings recorded in docs/performance.md.
+
+use crate::physics::{self, RefractiveIndex};
+use crate::solver::{self, Base, Layer, Problem, Settings, Thickness};
+use clap::{Args, Subcommand};
+use serde_json::{Value, json};
+use std::time::Instant;
+
+#[derive(Debug, Subcommand)]
+pub enum BenchCommand {
+    /// Full-Mueller BRDF table of the seed's TiO2 layer on the seed's
+    /// 51 x 51 x 61 grid, at several stream counts, with the error against
+    /// the 64-stream table.
+    Table(TableArgs),
+    /// Time per Mie + expansion at several size parameters.
+    Mie(MieBenchArgs),
+}
+
+#[derive(Debug, Args)]
+pub struct TableArgs {
+    /// Stream counts to time (default 8,16,32,64; the largest is the reference).
+    #[arg(long, value_delimiter = ',')]
+    streams: Option<Vec<usize>>,
+    /// Print {"rows": [...]} as JSON (always JSON; kept for scripts).
+    #[arg(long)]
+    json: bool,
+    /// Repetitions per setting (the minimum time is reported).
+    #[arg(long, default_value_t = 3)]
+    repeat: usize,
+}
+
+#[derive(Debug, Args)]
+pub struct MieBenchArgs {
+    /// Size parameters.
+    #[arg(long, value_delimiter = ',', default_value = "1,10,100,1000,10000")]
+    x: Vec<f64>,
+    /// Relative index n (real part).
+    #[arg(long, default_value_t = 1.5)]
+    n: f64,
+    /// Relative index k.
+    #[arg(long, default_value_t = 0.01)]
+    k: f64,
+}
+
+pub fn run(cmd: &BenchCommand) -> Result<Value, String> {
+    match cmd {
+        BenchCommand::Table(a) => table(a),
+        BenchCommand::Mie(a) => mie(a),
+    }
+}
+
+/// The seed's table grid: 51 polar angles 0..90° (incident and outgoing) and
+/// 61 azimuths 0..360°.
+pub fn seed_grid() -> (Vec<f64>, Vec<f64>) {
+    let theta: Vec<f64> = (0..51).map(|k| 90.0 * k as f64 / 50.0).collect();
+    let phi: Vec<f64> = (0..61).map(|k| 360.0 * k as f64 / 60.0).collect();
+    (theta, phi)
+}
+
+/// The TiO2 benchmark problem (r = 0.2 µm, 550 nm, host 1.0, tau = 1, black).
+fn tio2_problem(streams: usize) -> Result<Problem, String> {
+    let index = physics::materials::refractive_index("TiO2", 550.0).map_err(|e| e.to_string())?;
+    let (albedo, coef) =
+        physics::mie_expansion(index, 1.0, 550.0, Some(0.2), None).map_err(|e| e.to_string())?;
+    Ok(Problem {
+        layers: vec![Layer {
+            thickness: Thickness::Finite(1.0),
+            albedo,
+            coef,
+        }],
+        base: Base::Black,
+        settings: Settings {
+            streams,
+            ..Settings::default()
+        },
+    })
+}
+
+/// f11 on the seed grid: [theta_i][theta_o][phi].
+fn table_f11(problem: &Problem) -> Result<Vec<f64>, String> {
+    let (theta, phi) = seed_grid();
+    let mu: Vec<f64> = theta
+        .iter()
+        .map(|&t| super::solve::mu_of_theta_deg(t))
+        .collect();
+    let set = super::solve::MuSet::new(mu.iter().cloned());
+    let refl = solver::reflection(problem, &set.mu).map_err(|e| e.to_string())?;
+    let mut out = Vec::with_capacity(51 * 51 * 61);
+    for &mi in &mu {
+        let iv = set.index(mi);
+        for &mo in &mu {
+            let iu = set.index(mo);
+            for &p in &phi {
+                let m = refl.brdf(iu, iv, (p - 180.0).to_radians());
+                out.push(m[0][0]);
+            }
+        }
+    }
+    Ok(out)
+}
+
+fn table(a: &TableArgs) -> Result<Value, String> {
+    let streams = a.streams.clone().unwrap_or_else(|| vec![8, 16, 32, 64]);
+    let reference_streams = *streams.iter().max().ok_or("no stream counts")?;
+    let reference = table_f11(&tio2_problem(reference_streams)?)?;
+    let scale = reference.iter().cloned().fold(0.0, f64::max);
+    let mut rows = Vec::new();
+    for &n in &streams {
+        let problem = tio2_problem(n)?;
+        let mut best = f64::INFINITY;
+        let mut table = Vec::new();
+        for _ in 0..a.repeat.max(1) {
+            let t0 = Instant::now();
+            table = table_f11(&problem)?;
+            best = best.min(t0.elapsed().as_secs_f64() * 1e3);
+        }
+        let max_err = table
+            .iter()
+            .zip(&reference)
+            .map(|(x, y)| (x - y).abs())
+            .fold(0.0, f64::max)
+            / scale;
+        rows.push(json!({"streams": n, "wall_time_ms": best, "max_err_f11": max_err, "points": table.len()}));
+    }
+    Ok(json!({"rows": rows, "reference_streams": reference_streams, "max_f11": scale}))
+}
+
+fn mie(a: &MieBenchArgs) -> Result<Value, String> {
+    let mut rows = Vec::new();
+    for &x in &a.x {
+        // Radius for lambda = 1000 nm in vacuum, host 1.
+        let radius_um = x / (2.0 * std::f64::consts::PI);
+        let index = RefractiveIndex::new(a.n, a.k);
+        let t0 = Instant::now();
+        let mut reps = 0;
+        let mut terms = 0;
+        while reps == 0 || t0.elapsed().as_secs_f64() < 0.5 {
+            let (_, coef) = physics::mie_expansion(index, 1.0, 1000.0, Some(radius_um), None)
+                .map_err(|e| e.to_string())?;
+            terms = coef.beta.len();
+            reps += 1;
+        }
+        let ms = t0.elapsed().as_secs_f64() * 1e3 / reps as f64;
+        rows.push(json!({"size_parameter": x, "wall_time_ms": ms, "expansion_terms": terms}));
+    }
+    Ok(json!({"rows": rows}))
+}

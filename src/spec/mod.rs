@@ -1,0 +1,712 @@
+//! The material spec: the one input format of the CLI and the HTTP API
+//! (docs/spec.md). Parsing with JSON paths in every error, validation of
+//! ranges, and conversion into solver problems, one per wavelength.
+
+use crate::physics::expansion::GreekCoefficients;
+use crate::physics::{RefractiveIndex, fresnel, materials};
+use crate::solver::{self, Base, Layer, Problem, Settings, Thickness};
+use serde::{Deserialize, Serialize};
+use std::sync::Arc;
+
+/// A spec error: the JSON path of the problem and what is allowed there.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[error("{path}: {message}")]
+pub struct SpecError {
+    /// JSON path, e.g. `layers[0].scatterer.mie.radius_um`.
+    pub path: String,
+    /// What is wrong and what is allowed.
+    pub message: String,
+}
+
+impl SpecError {
+    fn new(path: impl Into<String>, message: impl Into<String>) -> Self {
+        Self {
+            path: path.into(),
+            message: message.into(),
+        }
+    }
+}
+
+/// The material spec (docs/spec.md).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Spec {
+    /// Layers, top to bottom.
+    pub layers: Vec<LayerSpec>,
+    /// Lower boundary.
+    #[serde(default)]
+    pub base: BaseSpec,
+    /// Vacuum wavelengths in nm; required when anything depends on wavelength.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub wavelengths_nm: Option<Vec<f64>>,
+    /// Numerical settings.
+    #[serde(default)]
+    pub solver: SolverSpec,
+}
+
+/// One homogeneous layer.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LayerSpec {
+    /// A number ≥ 0 or the string `"infinite"` (last layer only).
+    pub optical_thickness: ThicknessSpec,
+    /// What scatters in the layer.
+    pub scatterer: ScattererSpec,
+}
+
+/// Optical thickness as written in JSON.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum ThicknessSpec {
+    /// A finite thickness.
+    Number(f64),
+    /// Must be `"infinite"`.
+    Word(String),
+}
+
+/// The scatterer of a layer.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
+pub enum ScattererSpec {
+    /// Mie spheres.
+    Mie(MieSpec),
+    /// Given Greek coefficients (conventions §4).
+    Expansion(ExpansionSpec),
+    /// Rayleigh–Cabannes scattering.
+    Rayleigh {
+        /// Single-scattering albedo.
+        albedo: f64,
+        /// Depolarization factor `ρ ∈ [0, 1)`.
+        #[serde(default)]
+        depolarization: f64,
+    },
+    /// Henyey–Greenstein phase function (a1 only, no polarization).
+    HenyeyGreenstein {
+        /// Single-scattering albedo.
+        albedo: f64,
+        /// Asymmetry parameter `g ∈ (−1, 1)`.
+        g: f64,
+    },
+}
+
+/// A material given by name or by index.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum MaterialSpec {
+    /// Built-in material (`physics::materials`).
+    Name(String),
+    /// Explicit complex index `n + i k`.
+    Index {
+        /// Real part.
+        n: f64,
+        /// Imaginary part (≥ 0 absorbs).
+        k: f64,
+    },
+}
+
+/// Mie spheres in a binder.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MieSpec {
+    /// Particle material.
+    pub material: MaterialSpec,
+    /// Radius of monodisperse spheres (µm); exclusive with `size_distribution`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub radius_um: Option<f64>,
+    /// Size distribution; exclusive with `radius_um`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub size_distribution: Option<SizeDistributionSpec>,
+    /// Real refractive index of the binder (≥ 1).
+    #[serde(default = "one")]
+    pub host_index: f64,
+}
+
+fn one() -> f64 {
+    1.0
+}
+
+/// Particle size distributions.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
+pub enum SizeDistributionSpec {
+    /// Log-normal number distribution.
+    Lognormal {
+        /// Geometric mean radius (µm).
+        r_g_um: f64,
+        /// Geometric standard deviation (> 1).
+        sigma_g: f64,
+    },
+    /// Gamma distribution (Hansen & Travis 1974).
+    Gamma {
+        /// Effective radius (µm).
+        r_eff_um: f64,
+        /// Effective variance (> 0, < 0.5).
+        v_eff: f64,
+    },
+}
+
+/// Explicit expansion coefficients.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ExpansionSpec {
+    /// Single-scattering albedo.
+    pub albedo: f64,
+    /// β_l (β_0 = 1).
+    pub beta: Vec<f64>,
+    /// α_l (missing entries are 0).
+    #[serde(default)]
+    pub alpha: Vec<f64>,
+    /// ζ_l.
+    #[serde(default)]
+    pub zeta: Vec<f64>,
+    /// δ_l.
+    #[serde(default)]
+    pub delta: Vec<f64>,
+    /// γ_l.
+    #[serde(default)]
+    pub gamma: Vec<f64>,
+    /// ε_l.
+    #[serde(default)]
+    pub epsilon: Vec<f64>,
+}
+
+/// The lower boundary as written in JSON: `"black"` or an object.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
+pub enum BaseSpec {
+    /// No reflection.
+    #[default]
+    Black,
+    /// Depolarizing Lambertian reflector.
+    Lambertian {
+        /// Hemispherical reflectance in `[0, 1]`.
+        albedo: f64,
+    },
+    /// Smooth Fresnel interface with the binder above it.
+    Fresnel {
+        /// Base material.
+        material: MaterialSpec,
+        /// Real index of the medium above the base; default: the binder of
+        /// the last layer if it is a Mie layer, else 1.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        ambient_index: Option<f64>,
+    },
+}
+
+/// Numerical settings.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SolverSpec {
+    /// Quadrature points per hemisphere.
+    #[serde(default = "default_streams")]
+    pub streams: usize,
+    /// Vector (true) or scalar (false) radiative transfer.
+    #[serde(default = "yes")]
+    pub polarized: bool,
+}
+
+fn default_streams() -> usize {
+    16
+}
+fn yes() -> bool {
+    true
+}
+
+impl Default for SolverSpec {
+    fn default() -> Self {
+        Self {
+            streams: default_streams(),
+            polarized: true,
+        }
+    }
+}
+
+/// Hard limits of the spec (the service adds its own, lower, caps).
+pub const MAX_STREAMS: usize = 512;
+
+/// Parse JSON text into a spec; errors carry the JSON path.
+pub fn parse(text: &str) -> Result<Spec, SpecError> {
+    let de = &mut serde_json::Deserializer::from_str(text);
+    let spec: Spec = serde_path_to_error::deserialize(de).map_err(|e| {
+        let path = e.path().to_string();
+        SpecError::new(
+            if path == "." { "$".into() } else { path },
+            e.inner().to_string(),
+        )
+    })?;
+    validate(&spec)?;
+    Ok(spec)
+}
+
+fn finite_in(path: &str, v: f64, lo: f64, hi: f64, what: &str) -> Result<(), SpecError> {
+    if v.is_finite() && v >= lo && v <= hi {
+        Ok(())
+    } else {
+        Err(SpecError::new(
+            path,
+            format!("{v} is outside the allowed range {what}"),
+        ))
+    }
+}
+
+fn needs_wavelength(spec: &Spec) -> bool {
+    let named = |m: &MaterialSpec| matches!(m, MaterialSpec::Name(_));
+    spec.layers
+        .iter()
+        .any(|l| matches!(l.scatterer, ScattererSpec::Mie(_)))
+        || matches!(&spec.base, BaseSpec::Fresnel { material, .. } if named(material))
+}
+
+/// Check every range; the error names the JSON path.
+pub fn validate(spec: &Spec) -> Result<(), SpecError> {
+    if spec.layers.is_empty() {
+        return Err(SpecError::new("layers", "at least one layer is required"));
+    }
+    let n_layers = spec.layers.len();
+    for (i, layer) in spec.layers.iter().enumerate() {
+        let p = format!("layers[{i}]");
+        match &layer.optical_thickness {
+            ThicknessSpec::Number(t) => finite_in(
+                &format!("{p}.optical_thickness"),
+                *t,
+                0.0,
+                1e12,
+                "[0, 1e12] (or \"infinite\")",
+            )?,
+            ThicknessSpec::Word(w) => {
+                if w != "infinite" {
+                    return Err(SpecError::new(
+                        format!("{p}.optical_thickness"),
+                        format!("\"{w}\" is not allowed: give a number ≥ 0 or \"infinite\""),
+                    ));
+                }
+                if i + 1 != n_layers {
+                    return Err(SpecError::new(
+                        format!("{p}.optical_thickness"),
+                        "only the last layer may be \"infinite\"",
+                    ));
+                }
+            }
+        }
+        let sp = format!("{p}.scatterer");
+        match &layer.scatterer {
+            ScattererSpec::Mie(m) => {
+                let mp = format!("{sp}.mie");
+                validate_material(&format!("{mp}.material"), &m.material)?;
+                finite_in(
+                    &format!("{mp}.host_index"),
+                    m.host_index,
+                    1.0,
+                    10.0,
+                    "[1, 10]",
+                )?;
+                match (&m.radius_um, &m.size_distribution) {
+                    (Some(r), None) => {
+                        finite_in(&format!("{mp}.radius_um"), *r, 1e-6, 1e4, "[1e-6, 1e4] µm")?
+                    }
+                    (None, Some(SizeDistributionSpec::Lognormal { r_g_um, sigma_g })) => {
+                        let q = format!("{mp}.size_distribution.lognormal");
+                        finite_in(&format!("{q}.r_g_um"), *r_g_um, 1e-6, 1e4, "[1e-6, 1e4] µm")?;
+                        finite_in(
+                            &format!("{q}.sigma_g"),
+                            *sigma_g,
+                            1.0001,
+                            5.0,
+                            "[1.0001, 5]",
+                        )?;
+                    }
+                    (None, Some(SizeDistributionSpec::Gamma { r_eff_um, v_eff })) => {
+                        let q = format!("{mp}.size_distribution.gamma");
+                        finite_in(
+                            &format!("{q}.r_eff_um"),
+                            *r_eff_um,
+                            1e-6,
+                            1e4,
+                            "[1e-6, 1e4] µm",
+                        )?;
+                        finite_in(&format!("{q}.v_eff"), *v_eff, 1e-4, 0.49, "[1e-4, 0.49]")?;
+                    }
+                    (Some(_), Some(_)) => {
+                        return Err(SpecError::new(
+                            mp,
+                            "give either radius_um or size_distribution, not both",
+                        ));
+                    }
+                    (None, None) => {
+                        return Err(SpecError::new(
+                            mp,
+                            "missing field: radius_um or size_distribution is required",
+                        ));
+                    }
+                }
+            }
+            ScattererSpec::Expansion(e) => {
+                let ep = format!("{sp}.expansion");
+                finite_in(&format!("{ep}.albedo"), e.albedo, 0.0, 1.0, "[0, 1]")?;
+                if e.beta.is_empty() {
+                    return Err(SpecError::new(
+                        format!("{ep}.beta"),
+                        "at least beta_0 = 1 is required",
+                    ));
+                }
+                if (e.beta[0] - 1.0).abs() > 1e-6 {
+                    return Err(SpecError::new(
+                        format!("{ep}.beta[0]"),
+                        format!("{} must be 1 (normalised phase function)", e.beta[0]),
+                    ));
+                }
+                for (name, v) in [
+                    ("beta", &e.beta),
+                    ("alpha", &e.alpha),
+                    ("zeta", &e.zeta),
+                    ("delta", &e.delta),
+                    ("gamma", &e.gamma),
+                    ("epsilon", &e.epsilon),
+                ] {
+                    if v.len() > 100_000 {
+                        return Err(SpecError::new(
+                            format!("{ep}.{name}"),
+                            "at most 100000 terms",
+                        ));
+                    }
+                    for (l, x) in v.iter().enumerate() {
+                        if !x.is_finite() || x.abs() > 1e6 {
+                            return Err(SpecError::new(
+                                format!("{ep}.{name}[{l}]"),
+                                format!("{x} is not a finite number with |x| ≤ 1e6"),
+                            ));
+                        }
+                    }
+                }
+            }
+            ScattererSpec::Rayleigh {
+                albedo,
+                depolarization,
+            } => {
+                finite_in(
+                    &format!("{sp}.rayleigh.albedo"),
+                    *albedo,
+                    0.0,
+                    1.0,
+                    "[0, 1]",
+                )?;
+                finite_in(
+                    &format!("{sp}.rayleigh.depolarization"),
+                    *depolarization,
+                    0.0,
+                    0.99,
+                    "[0, 0.99]",
+                )?;
+            }
+            ScattererSpec::HenyeyGreenstein { albedo, g } => {
+                finite_in(
+                    &format!("{sp}.henyey_greenstein.albedo"),
+                    *albedo,
+                    0.0,
+                    1.0,
+                    "[0, 1]",
+                )?;
+                finite_in(
+                    &format!("{sp}.henyey_greenstein.g"),
+                    *g,
+                    -0.999,
+                    0.999,
+                    "[-0.999, 0.999]",
+                )?;
+            }
+        }
+    }
+    match &spec.base {
+        BaseSpec::Black => {}
+        BaseSpec::Lambertian { albedo } => {
+            finite_in("base.lambertian.albedo", *albedo, 0.0, 1.0, "[0, 1]")?
+        }
+        BaseSpec::Fresnel {
+            material,
+            ambient_index,
+        } => {
+            validate_material("base.fresnel.material", material)?;
+            if let Some(a) = ambient_index {
+                finite_in("base.fresnel.ambient_index", *a, 1.0, 10.0, "[1, 10]")?;
+            }
+        }
+    }
+    match &spec.wavelengths_nm {
+        Some(w) => {
+            if w.is_empty() || w.len() > 1000 {
+                return Err(SpecError::new(
+                    "wavelengths_nm",
+                    "give between 1 and 1000 wavelengths",
+                ));
+            }
+            for (i, x) in w.iter().enumerate() {
+                finite_in(
+                    &format!("wavelengths_nm[{i}]"),
+                    *x,
+                    100.0,
+                    100_000.0,
+                    "[100, 100000] nm",
+                )?;
+            }
+        }
+        None => {
+            if needs_wavelength(spec) {
+                return Err(SpecError::new(
+                    "wavelengths_nm",
+                    "missing field: required because a layer or the base depends on wavelength",
+                ));
+            }
+        }
+    }
+    if spec.solver.streams == 0 || spec.solver.streams > MAX_STREAMS {
+        return Err(SpecError::new(
+            "solver.streams",
+            format!(
+                "{} is outside the allowed range [1, {MAX_STREAMS}]",
+                spec.solver.streams
+            ),
+        ));
+    }
+    Ok(())
+}
+
+fn validate_material(path: &str, m: &MaterialSpec) -> Result<(), SpecError> {
+    match m {
+        MaterialSpec::Name(name) => {
+            if materials::find(name).is_err() {
+                return Err(SpecError::new(
+                    path,
+                    format!(
+                        "unknown material '{name}' (known: {})",
+                        materials::known_materials().join(", ")
+                    ),
+                ));
+            }
+            Ok(())
+        }
+        MaterialSpec::Index { n, k } => {
+            finite_in(&format!("{path}.n"), *n, 1e-6, 100.0, "(0, 100]")?;
+            finite_in(&format!("{path}.k"), *k, 0.0, 100.0, "[0, 100]")
+        }
+    }
+}
+
+fn resolve_index(
+    path: &str,
+    m: &MaterialSpec,
+    wavelength_nm: Option<f64>,
+) -> Result<RefractiveIndex, SpecError> {
+    match m {
+        MaterialSpec::Index { n, k } => Ok(RefractiveIndex::new(*n, *k)),
+        MaterialSpec::Name(name) => {
+            let wl = wavelength_nm
+                .ok_or_else(|| SpecError::new("wavelengths_nm", "required for named materials"))?;
+            materials::refractive_index(name, wl).map_err(|e| SpecError::new(path, e.to_string()))
+        }
+    }
+}
+
+/// Zero-pad a coefficient array to `len`.
+fn padded(v: &[f64], len: usize) -> Vec<f64> {
+    let mut out = v.to_vec();
+    out.resize(len, 0.0);
+    out
+}
+
+/// Single-scattering albedo and Greek coefficients of one layer at one
+/// wavelength.
+pub fn layer_optics(
+    path: &str,
+    scatterer: &ScattererSpec,
+    wavelength_nm: Option<f64>,
+) -> Result<(f64, GreekCoefficients), SpecError> {
+    match scatterer {
+        ScattererSpec::Expansion(e) => {
+            let len = [&e.beta, &e.alpha, &e.zeta, &e.delta, &e.gamma, &e.epsilon]
+                .iter()
+                .map(|v| v.len())
+                .max()
+                .unwrap_or(1);
+            Ok((
+                e.albedo,
+                GreekCoefficients {
+                    beta: padded(&e.beta, len),
+                    alpha: padded(&e.alpha, len),
+                    zeta: padded(&e.zeta, len),
+                    delta: padded(&e.delta, len),
+                    gamma: padded(&e.gamma, len),
+                    epsilon: padded(&e.epsilon, len),
+                },
+            ))
+        }
+        ScattererSpec::Rayleigh {
+            albedo,
+            depolarization,
+        } => Ok((*albedo, GreekCoefficients::rayleigh(*depolarization))),
+        ScattererSpec::HenyeyGreenstein { albedo, g } => {
+            // Enough terms that the series tail is below 1e-12.
+            let l_max = if g.abs() < 1e-12 {
+                0
+            } else {
+                ((1e-12f64).ln() / g.abs().ln()).ceil().max(1.0) as usize
+            };
+            Ok((
+                *albedo,
+                GreekCoefficients::henyey_greenstein(*g, l_max.min(20_000)),
+            ))
+        }
+        ScattererSpec::Mie(m) => mie_optics(&format!("{path}.mie"), m, wavelength_nm),
+    }
+}
+
+fn mie_optics(
+    path: &str,
+    m: &MieSpec,
+    wavelength_nm: Option<f64>,
+) -> Result<(f64, GreekCoefficients), SpecError> {
+    let wl =
+        wavelength_nm.ok_or_else(|| SpecError::new("wavelengths_nm", "required for Mie layers"))?;
+    let index = resolve_index(&format!("{path}.material"), &m.material, Some(wl))?;
+    crate::physics::mie_expansion(
+        index,
+        m.host_index,
+        wl,
+        m.radius_um,
+        m.size_distribution.as_ref().map(to_psd),
+    )
+    .map_err(|e| SpecError::new(path, e.to_string()))
+}
+
+fn to_psd(s: &SizeDistributionSpec) -> crate::physics::psd::SizeDistribution {
+    match *s {
+        SizeDistributionSpec::Lognormal { r_g_um, sigma_g } => {
+            crate::physics::psd::SizeDistribution::LogNormal { r_g_um, sigma_g }
+        }
+        SizeDistributionSpec::Gamma { r_eff_um, v_eff } => {
+            crate::physics::psd::SizeDistribution::Gamma { r_eff_um, v_eff }
+        }
+    }
+}
+
+/// The solver problem at one wavelength (`None` for a wavelength-free spec).
+pub fn problem(spec: &Spec, wavelength_nm: Option<f64>) -> Result<Problem, SpecError> {
+    let mut layers = Vec::with_capacity(spec.layers.len());
+    for (i, l) in spec.layers.iter().enumerate() {
+        let path = format!("layers[{i}].scatterer");
+        let (albedo, coef) = layer_optics(&path, &l.scatterer, wavelength_nm)?;
+        let thickness = match l.optical_thickness {
+            ThicknessSpec::Number(t) => Thickness::Finite(t),
+            ThicknessSpec::Word(_) => Thickness::Infinite,
+        };
+        layers.push(Layer {
+            thickness,
+            albedo,
+            coef,
+        });
+    }
+    let base = match &spec.base {
+        BaseSpec::Black => Base::Black,
+        BaseSpec::Lambertian { albedo } => Base::Lambertian { albedo: *albedo },
+        BaseSpec::Fresnel {
+            material,
+            ambient_index,
+        } => {
+            let n2 = resolve_index("base.fresnel.material", material, wavelength_nm)?;
+            let n1 =
+                ambient_index.unwrap_or_else(|| match spec.layers.last().map(|l| &l.scatterer) {
+                    Some(ScattererSpec::Mie(m)) => m.host_index,
+                    _ => 1.0,
+                });
+            // Validate once here so the closure below cannot fail.
+            fresnel::mueller(n1, n2, 0.5)
+                .map_err(|e| SpecError::new("base.fresnel", e.to_string()))?;
+            Base::Mirror {
+                mueller: Arc::new(move |mu: f64| {
+                    fresnel::mueller(n1, n2, mu.clamp(0.0, 1.0)).unwrap_or([[0.0; 4]; 4])
+                }),
+            }
+        }
+    };
+    Ok(Problem {
+        layers,
+        base,
+        settings: Settings {
+            streams: spec.solver.streams,
+            polarized: spec.solver.polarized,
+            ..Settings::default()
+        },
+    })
+}
+
+/// The wavelengths to solve: the listed ones, or one wavelength-free run.
+pub fn wavelengths(spec: &Spec) -> Vec<Option<f64>> {
+    match &spec.wavelengths_nm {
+        Some(w) => w.iter().map(|&x| Some(x)).collect(),
+        None => vec![None],
+    }
+}
+
+/// Re-export for callers that only need the solver types.
+pub use solver::SolverError;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn unknown_key_names_path() {
+        let e = parse(r#"{"layers":[{"optical_thickness":1,"scatterer":{"rayleigh":{"albedo":1,"depol":0}}}]}"#)
+            .unwrap_err();
+        assert!(e.path.starts_with("layers[0].scatterer"), "{e}");
+        assert!(e.message.contains("depol"), "{e}");
+    }
+
+    #[test]
+    fn out_of_range_names_path_and_range() {
+        let e =
+            parse(r#"{"layers":[{"optical_thickness":-1,"scatterer":{"rayleigh":{"albedo":1}}}]}"#)
+                .unwrap_err();
+        assert_eq!(e.path, "layers[0].optical_thickness");
+        assert!(e.message.contains("[0, 1e12]"), "{e}");
+        let e = parse(r#"{"layers":[{"optical_thickness":1,"scatterer":{"henyey_greenstein":{"albedo":1.5,"g":0.5}}}]}"#)
+            .unwrap_err();
+        assert_eq!(e.path, "layers[0].scatterer.henyey_greenstein.albedo");
+    }
+
+    #[test]
+    fn infinite_only_last_and_wavelength_required() {
+        let e = parse(
+            r#"{"layers":[{"optical_thickness":"infinite","scatterer":{"rayleigh":{"albedo":1}}},
+                          {"optical_thickness":1,"scatterer":{"rayleigh":{"albedo":1}}}]}"#,
+        )
+        .unwrap_err();
+        assert_eq!(e.path, "layers[0].optical_thickness");
+        let e = parse(
+            r#"{"layers":[{"optical_thickness":1,"scatterer":{"mie":{"material":"TiO2","radius_um":0.2}}}]}"#,
+        )
+        .unwrap_err();
+        assert_eq!(e.path, "wavelengths_nm");
+    }
+
+    #[test]
+    fn issue_example_parses() {
+        let s = parse(
+            r#"{
+          "layers": [
+            { "optical_thickness": 1.0,
+              "scatterer": { "mie": { "material": "TiO2", "radius_um": 0.2, "host_index": 1.0 } } },
+            { "optical_thickness": "infinite",
+              "scatterer": { "expansion": { "albedo": 0.973527, "beta": [1.0, 2.104031], "alpha": [], "zeta": [], "delta": [], "gamma": [], "epsilon": [] } } }
+          ],
+          "base": { "lambertian": { "albedo": 0.5 } },
+          "wavelengths_nm": [450, 550, 650],
+          "solver": { "streams": 16, "polarized": true }
+        }"#,
+        )
+        .unwrap();
+        assert_eq!(s.layers.len(), 2);
+        let s2 = parse(r#"{"layers":[{"optical_thickness":1,"scatterer":{"rayleigh":{"albedo":1}}}],"base":"black"}"#)
+            .unwrap();
+        assert_eq!(s2.base, BaseSpec::Black);
+    }
+}

@@ -1,0 +1,54 @@
+//! Helpers shared by the integration tests: reading `../shared/benchmarks`.
+#![allow(dead_code)]
+
+use polbrdf::physics::expansion::GreekCoefficients;
+use serde_json::Value;
+
+/// Parse a benchmark file from `../shared/benchmarks` (next to the repository).
+pub fn benchmark(name: &str) -> Value {
+    let path = format!("{}/../shared/benchmarks/{name}", env!("CARGO_MANIFEST_DIR"));
+    let text = std::fs::read_to_string(&path)
+        .unwrap_or_else(|e| panic!("benchmark file {path} is required by this test: {e}"));
+    serde_json::from_str(&text).expect("benchmark JSON")
+}
+
+/// `Value` array of numbers to `Vec<f64>`.
+pub fn floats(v: &Value) -> Vec<f64> {
+    v.as_array()
+        .expect("array")
+        .iter()
+        .map(|x| x.as_f64().expect("number"))
+        .collect()
+}
+
+/// The Garcia–Siewert L=13 coefficients (Siewert/VLIDORT convention).
+pub fn garcia_siewert() -> GreekCoefficients {
+    let v = benchmark("garcia_siewert_L13_coeffs.json");
+    let c = &v["coefficients"];
+    GreekCoefficients {
+        beta: floats(&c["beta"]),
+        alpha: floats(&c["alpha"]),
+        zeta: floats(&c["zeta"]),
+        delta: floats(&c["delta"]),
+        gamma: floats(&c["gamma"]),
+        epsilon: floats(&c["epsilon"]),
+    }
+}
+
+/// Track the worst deviation of a comparison and where it happened.
+#[derive(Default, Debug)]
+pub struct Worst {
+    pub value: f64,
+    pub at: String,
+    pub count: usize,
+}
+
+impl Worst {
+    pub fn see(&mut self, dev: f64, at: impl FnOnce() -> String) {
+        self.count += 1;
+        if dev > self.value || !dev.is_finite() {
+            self.value = dev;
+            self.at = at();
+        }
+    }
+}

@@ -618,3 +618,71 @@ fn interface_field(a: &Ops, b: &Ops) -> (Mat<f64>, Mat<f64>) {
     let down = &a.tuu + layer::mm(a.rus.as_ref(), u.as_ref());
     (up, down)
 }
+
+#[cfg(test)]
+mod symmetry_tests {
+    use super::*;
+
+    fn gs_layer(tau: f64) -> (Grid, Layer) {
+        let coef = phase::tests_support::garcia_siewert();
+        let (mu_q, w_q) = double_gauss(6);
+        let grid = Grid {
+            ns: 4,
+            mu_q,
+            w_q,
+            mu_u: vec![0.1, 0.45, 0.8, 1.0],
+        };
+        (
+            grid,
+            Layer {
+                thickness: Thickness::Finite(tau),
+                albedo: 0.95,
+                coef,
+            },
+        )
+    }
+
+    fn sign(i: usize) -> f64 {
+        if i % 4 < 2 { 1.0 } else { -1.0 }
+    }
+
+    /// Probe which sign/transposition relations hold (exploration helper).
+    #[test]
+    fn mirror_symmetry_and_reciprocity() {
+        let (grid, layer) = gs_layer(0.7);
+        let s = Settings::default();
+        for m in [0usize, 1, 3] {
+            let o = layer_ops(&grid, &layer, m, &s);
+            let n = o.n;
+            let mut e_rs: f64 = 0.0;
+            let mut e_ts: f64 = 0.0;
+            for i in 0..n {
+                for j in 0..n {
+                    e_rs = e_rs.max((o.rs[(i, j)] - sign(i) * o.r[(i, j)] * sign(j)).abs());
+                    e_ts = e_ts.max((o.ts[(i, j)] - sign(i) * o.t[(i, j)] * sign(j)).abs());
+                }
+            }
+            eprintln!("m={m}: |rs - S r S| = {e_rs:.2e}, |ts - S t S| = {e_ts:.2e}");
+            // Reciprocity candidates: rb[i,v] = (μv/μi) Δ ru[v,i]^T Δ / w_i.
+            for (name, dd) in [("D4", [1.0, 1.0, 1.0, -1.0]), ("D3", [1.0, 1.0, -1.0, 1.0]), ("I", [1.0; 4])] {
+                let mut e_rb: f64 = 0.0;
+                let mut e_tb: f64 = 0.0;
+                let ns = 4;
+                for i in 0..grid.mu_q.len() {
+                    for v in 0..grid.mu_u.len() {
+                        for p in 0..ns {
+                            for q in 0..ns {
+                                let f = grid.mu_u[v] / grid.mu_q[i] / grid.w_q[i];
+                                let rb = f * dd[p] * o.ru[(v * ns + q, i * ns + p)] * dd[q];
+                                let tb = f * dd[p] * o.tus[(v * ns + q, i * ns + p)] * dd[q];
+                                e_rb = e_rb.max((rb - o.rb[(i * ns + p, v * ns + q)]).abs());
+                                e_tb = e_tb.max((tb - o.tb[(i * ns + p, v * ns + q)]).abs());
+                            }
+                        }
+                    }
+                }
+                eprintln!("   {name}: rb err {e_rb:.2e}, tb err {e_tb:.2e}");
+            }
+        }
+    }
+}

@@ -222,6 +222,23 @@ pub fn size_parameter_and_index(
     wavelength_nm: f64,
     radius_um: f64,
 ) -> Result<(f64, C64), PhysicsError> {
+    let (k, m) = wavenumber_and_index(particle, n_host, wavelength_nm)?;
+    if !(radius_um.is_finite() && radius_um > 0.0) {
+        return Err(out_of_range("radius_um", radius_um, "(0, ∞)"));
+    }
+    let x = k * radius_um;
+    validate_x(x)?;
+    Ok((x, m))
+}
+
+/// Host wavenumber `k = 2π n_host / λ` in µm⁻¹ (so `x = k r_um`) and the
+/// relative index `m = m_particle / n_host`, validating all three inputs and
+/// `m` (conventions §1–§2).
+pub fn wavenumber_and_index(
+    particle: RefractiveIndex,
+    n_host: f64,
+    wavelength_nm: f64,
+) -> Result<(f64, C64), PhysicsError> {
     if !(particle.n.is_finite() && particle.n > 0.0) {
         return Err(out_of_range("particle_index.n", particle.n, "(0, ∞)"));
     }
@@ -234,13 +251,9 @@ pub fn size_parameter_and_index(
     if !(wavelength_nm.is_finite() && wavelength_nm > 0.0) {
         return Err(out_of_range("wavelength_nm", wavelength_nm, "(0, ∞)"));
     }
-    if !(radius_um.is_finite() && radius_um > 0.0) {
-        return Err(out_of_range("radius_um", radius_um, "(0, ∞)"));
-    }
-    let x = 2.0 * PI * radius_um * 1000.0 * n_host / wavelength_nm;
     let m = particle.as_complex() / n_host;
-    validate_x_m(x, m)?;
-    Ok((x, m))
+    validate_m(m)?;
+    Ok((2.0 * PI * 1000.0 * n_host / wavelength_nm, m))
 }
 
 fn out_of_range(name: &'static str, value: f64, range: &str) -> PhysicsError {
@@ -252,6 +265,11 @@ fn out_of_range(name: &'static str, value: f64, range: &str) -> PhysicsError {
 }
 
 fn validate_x_m(x: f64, m: C64) -> Result<(), PhysicsError> {
+    validate_x(x)?;
+    validate_m(m)
+}
+
+fn validate_x(x: f64) -> Result<(), PhysicsError> {
     if !(x.is_finite() && (SIZE_PARAMETER_MIN..=SIZE_PARAMETER_MAX).contains(&x)) {
         return Err(out_of_range(
             "size_parameter",
@@ -259,6 +277,10 @@ fn validate_x_m(x: f64, m: C64) -> Result<(), PhysicsError> {
             &format!("[{SIZE_PARAMETER_MIN:e}, {SIZE_PARAMETER_MAX:e}]"),
         ));
     }
+    Ok(())
+}
+
+fn validate_m(m: C64) -> Result<(), PhysicsError> {
     if !(m.re.is_finite() && m.re > 0.0) {
         return Err(out_of_range("relative_index.n", m.re, "(0, 30]"));
     }
@@ -504,7 +526,7 @@ mod complex_vec {
 
 #[cfg(test)]
 #[allow(clippy::approx_constant, clippy::needless_range_loop)] // tabulated data
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
     /// Gauss–Legendre nodes and weights on [-1, 1] (Newton on P_n), for tests

@@ -27,7 +27,7 @@
 //! Measured effect of the default `tail_fraction = 1e-6` (against 1e-8):
 //! ~1e-6 relative on the cross sections, up to ~6e-6 of `a1` on the matrix
 //! at back-scattering minima of `⟨S11⟩`, where the tails weigh more.
-
+//!
 //! # Quadrature
 //!
 //! Adaptive Simpson rule in `u = ln r + x(r)/5` (`x = k r`): a step `h` in

@@ -84,9 +84,92 @@ pub enum PhysicsError {
     Invalid(String),
 }
 
+/// Default truncation tolerance of the Greek expansion for a Mie population
+/// of largest size parameter `x`: `1e-10` for small particles, relaxed for
+/// forward-peaked ones down to the round-off floor of the projection
+/// (`expansion::expand_adaptive`: about `7.5e-9` at `x ≈ 100`).
+pub fn default_expansion_tolerance(x: f64) -> f64 {
+    if x < 20.0 {
+        1e-10
+    } else if x < 60.0 {
+        1e-9
+    } else if x < 300.0 {
+        1e-7
+    } else {
+        1e-6
+    }
+}
+
+/// A Mie population with its expansion: everything the solver needs, plus
+/// the report of the expansion.
+#[derive(Clone, Debug)]
+pub struct MieOptics {
+    /// Single-scattering albedo.
+    pub albedo: f64,
+    /// Asymmetry parameter.
+    pub g: f64,
+    /// Largest size parameter of the population.
+    pub size_parameter: f64,
+    /// Greek coefficients (conventions §4).
+    pub coefficients: expansion::GreekCoefficients,
+    /// How the expansion was obtained.
+    pub report: expansion::ExpansionReport,
+}
+
 /// Single-scattering albedo and Greek coefficients of a Mie population
 /// (monodisperse `radius_um` or a size distribution) at one wavelength: the
-/// glue between [`mie`]/[`psd`] and [`expansion`] used by the spec.
+/// glue between [`mie`]/[`psd`] and [`expansion`]. `tolerance = None` uses
+/// [`default_expansion_tolerance`].
+pub fn mie_optics(
+    index: RefractiveIndex,
+    host_index: f64,
+    wavelength_nm: f64,
+    radius_um: Option<f64>,
+    distribution: Option<psd::SizeDistribution>,
+    tolerance: Option<f64>,
+) -> Result<MieOptics, PhysicsError> {
+    match (radius_um, distribution) {
+        (Some(r), None) => {
+            let res = mie::MieResult::for_sphere(index, host_index, wavelength_nm, r)?;
+            let x = res.size_parameter;
+            let tol = tolerance.unwrap_or_else(|| default_expansion_tolerance(x));
+            let l_hint = (2.0 * x + 10.0).ceil() as usize;
+            let (coefficients, report) = expansion::expand_adaptive(|mu| res.scattering_matrix(mu), l_hint, tol)?;
+            Ok(MieOptics {
+                albedo: res.albedo,
+                g: res.g,
+                size_parameter: x,
+                coefficients,
+                report,
+            })
+        }
+        (None, Some(dist)) => {
+            let quad = psd::PsdQuadrature::default();
+            // Bulk quantities (and the largest size parameter) from one pass.
+            let probe = psd::bulk_optics(&dist, index, host_index, wavelength_nm, &[1.0], &quad)?;
+            let x = probe.size_parameter_max;
+            let tol = tolerance.unwrap_or_else(|| default_expansion_tolerance(x));
+            let l_hint = (2.0 * x + 10.0).ceil() as usize;
+            let (coefficients, report) = expansion::expand_adaptive(
+                |mu| psd::bulk_optics(&dist, index, host_index, wavelength_nm, mu, &quad).map(|b| b.matrix),
+                l_hint,
+                tol,
+            )?;
+            Ok(MieOptics {
+                albedo: probe.albedo,
+                g: probe.g,
+                size_parameter: x,
+                coefficients,
+                report,
+            })
+        }
+        _ => Err(PhysicsError::Invalid(
+            "give exactly one of radius_um and size_distribution".into(),
+        )),
+    }
+}
+
+/// [`mie_optics`] with the default tolerance, returning `(albedo, coefficients)`.
 pub fn mie_expansion(
     index: RefractiveIndex,
     host_index: f64,
@@ -94,6 +177,6 @@ pub fn mie_expansion(
     radius_um: Option<f64>,
     distribution: Option<psd::SizeDistribution>,
 ) -> Result<(f64, expansion::GreekCoefficients), PhysicsError> {
-    let _ = (index, host_index, wavelength_nm, radius_um, distribution);
-    Err(PhysicsError::Invalid("Mie is not merged yet".into()))
+    let o = mie_optics(index, host_index, wavelength_nm, radius_um, distribution, None)?;
+    Ok((o.albedo, o.coefficients))
 }

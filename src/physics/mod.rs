@@ -134,7 +134,8 @@ pub fn mie_optics(
             let x = res.size_parameter;
             let tol = tolerance.unwrap_or_else(|| default_expansion_tolerance(x));
             let l_hint = (2.0 * x + 10.0).ceil() as usize;
-            let (coefficients, report) = expansion::expand_adaptive(|mu| res.scattering_matrix(mu), l_hint, tol)?;
+            let (coefficients, report) =
+                expansion::expand_adaptive(|mu| res.scattering_matrix(mu), l_hint, tol)?;
             Ok(MieOptics {
                 albedo: res.albedo,
                 g: res.g,
@@ -151,7 +152,10 @@ pub fn mie_optics(
             let tol = tolerance.unwrap_or_else(|| default_expansion_tolerance(x));
             let l_hint = (2.0 * x + 10.0).ceil() as usize;
             let (coefficients, report) = expansion::expand_adaptive(
-                |mu| psd::bulk_optics(&dist, index, host_index, wavelength_nm, mu, &quad).map(|b| b.matrix),
+                |mu| {
+                    psd::bulk_optics(&dist, index, host_index, wavelength_nm, mu, &quad)
+                        .map(|b| b.matrix)
+                },
                 l_hint,
                 tol,
             )?;
@@ -177,6 +181,13 @@ pub fn mie_expansion(
     radius_um: Option<f64>,
     distribution: Option<psd::SizeDistribution>,
 ) -> Result<(f64, expansion::GreekCoefficients), PhysicsError> {
-    let o = mie_optics(index, host_index, wavelength_nm, radius_um, distribution, None)?;
+    let o = mie_optics(
+        index,
+        host_index,
+        wavelength_nm,
+        radius_um,
+        distribution,
+        None,
+    )?;
     Ok((o.albedo, o.coefficients))
 }

@@ -209,7 +209,12 @@ impl Cols {
 /// Outputs then follow by one product each; user radiance that reaches the
 /// interface crosses the other slab with its direct transmission only (zero
 /// weight: it does not scatter).
-pub fn add(a: &Ops, b: &Ops) -> Ops {
+///
+/// With `full = false` only what the response at the top needs is computed
+/// (quadrature outputs for top inputs and bottom quadrature input, user rows
+/// leaving the top); the blocks for a beam entering at the bottom and the
+/// user rows leaving the bottom are left zero.
+pub fn add(a: &Ops, b: &Ops, full: bool) -> Ops {
     let (n, nu, ns) = (a.n, a.nu, a.ns);
     let cols = Cols { n, nu };
     let rbb_ea = scale_cols(&b.rb, &a.eu, ns);
@@ -252,6 +257,34 @@ pub fn add(a: &Ops, b: &Ops) -> Ops {
     top_u += &from_b;
 
     // User radiance leaving the bottom.
+    if !full {
+        let [r, rb, ts, _] = cols.split(&top_q);
+        let [t, tb, rs, _] = cols.split(&bot_q);
+        let [ru, ruu, tus, _] = cols.split(&top_u);
+        let z = |a, b| Mat::<f64>::zeros(a, b);
+        return Ops {
+            n,
+            nu,
+            ns,
+            r,
+            t,
+            rs,
+            ts,
+            ru,
+            tu: z(nu, n),
+            rus: z(nu, n),
+            tus,
+            rb,
+            tb,
+            rbs: z(n, nu),
+            tbs: z(n, nu),
+            ruu,
+            tuu: z(nu, nu),
+            ruus: z(nu, nu),
+            tuus: z(nu, nu),
+            eu: a.eu.iter().zip(&b.eu).map(|(x, y)| x * y).collect(),
+        };
+    }
     let tuub_ea = scale_cols(&b.tuu, &a.eu, ns);
     let mut bot_u = cols.assemble(nu, [None, Some(&tuub_ea), Some(&b.rus), Some(&b.ruus)]);
     mm_into(&mut bot_u, Accum::Add, b.tu.as_ref(), d.as_ref());
@@ -384,6 +417,231 @@ pub fn add_mirror(a: &Ops, mq: &Mat<f64>, mu_blocks: &Mat<f64>) -> TopResponse {
     }
 }
 
+/// The mirror symmetry of a homogeneous layer: `R* = S R S`, `T* = S T S`
+/// with `S = diag(1, 1, −1, −1)` per direction (reflection in the horizontal
+/// plane turns right-handed meridian frames into left-handed ones, flipping
+/// U and V; test `symmetry_tests::mirror_symmetry_and_reciprocity`).
+pub fn mirror(m: &Mat<f64>, ns: usize) -> Mat<f64> {
+    let mut o = m.clone();
+    if ns == 1 {
+        return o;
+    }
+    let sgn = |i: usize| if i % ns < 2 { 1.0 } else { -1.0 };
+    for j in 0..o.ncols() {
+        for i in 0..o.nrows() {
+            o[(i, j)] *= sgn(i) * sgn(j);
+        }
+    }
+    o
+}
+
+/// What the doubling of a homogeneous layer must carry for the response at
+/// the top: `R`, `T` (the star operators follow by [`mirror`]), the user rows
+/// `Ru` (user up at the top from quadrature light entering at the top) and
+/// `Tu*` (user up at the top from quadrature light entering at the bottom),
+/// and the direct transmission of user directions.
+#[derive(Clone, Debug)]
+pub struct TopOps {
+    pub r: Mat<f64>,
+    pub t: Mat<f64>,
+    pub ru: Mat<f64>,
+    pub tus: Mat<f64>,
+    pub eu: Vec<f64>,
+}
+
+impl TopOps {
+    /// Take the blocks from full operators.
+    pub fn from_ops(o: &Ops) -> Self {
+        Self {
+            r: o.r.clone(),
+            t: o.t.clone(),
+            ru: o.ru.clone(),
+            tus: o.tus.clone(),
+            eu: o.eu.clone(),
+        }
+    }
+}
+
+/// One doubling step `τ → 2τ` of a homogeneous layer (adding equations of
+/// [`add`] with `a = b` and the mirror symmetry): with `G = I − R* R`,
+/// `D_x = G⁻¹T`, `U_x = R D_x`, `D_y = G⁻¹R* T*`, `U_y = R D_y + T*`:
+/// `R' = R + T* U_x`, `T' = T D_x`, `Ru' = Ru + Tu* U_x + E Ru D_x`,
+/// `Tu*' = Tu* U_y + E (Ru D_y + Tu*)`.
+pub fn double_top(o: &TopOps, ns: usize) -> TopOps {
+    let n = o.r.nrows();
+    let rs = mirror(&o.r, ns);
+    let ts = mirror(&o.t, ns);
+    let mut g = mm(rs.as_ref(), o.r.as_ref());
+    for i in 0..n {
+        for j in 0..n {
+            g[(i, j)] = if i == j { 1.0 } else { 0.0 } - g[(i, j)];
+        }
+    }
+    let lu = g.partial_piv_lu();
+    let dx = lu.solve(&o.t);
+    let ux = mm(o.r.as_ref(), dx.as_ref());
+    let dy = lu.solve(mm(rs.as_ref(), ts.as_ref()));
+    let mut uy = ts.clone();
+    mm_into(&mut uy, Accum::Add, o.r.as_ref(), dy.as_ref());
+    let mut r = o.r.clone();
+    mm_into(&mut r, Accum::Add, ts.as_ref(), ux.as_ref());
+    let t = mm(o.t.as_ref(), dx.as_ref());
+    // User rows: E·(Ru D_x) and E·(Ru D_y + Tu*) come from the lower copy.
+    let mut lower_x = mm(o.ru.as_ref(), dx.as_ref());
+    let mut lower_y = o.tus.clone();
+    mm_into(&mut lower_y, Accum::Add, o.ru.as_ref(), dy.as_ref());
+    lower_x = scale_rows(&lower_x, &o.eu, ns);
+    lower_y = scale_rows(&lower_y, &o.eu, ns);
+    let mut ru = o.ru.clone();
+    mm_into(&mut ru, Accum::Add, o.tus.as_ref(), ux.as_ref());
+    ru += &lower_x;
+    let mut tus = lower_y;
+    mm_into(&mut tus, Accum::Add, o.tus.as_ref(), uy.as_ref());
+    TopOps {
+        r,
+        t,
+        ru,
+        tus,
+        eu: o.eu.iter().map(|e| e * e).collect(),
+    }
+}
+
+/// Complete top-only operators of a homogeneous layer of thickness `tau`
+/// from the doubled [`TopOps`]:
+///
+/// * `R*`, `T*` by the mirror symmetry;
+/// * beam columns by polarized reciprocity (Hovenier 1969; for the Fourier
+///   components of the S1 set: `Rb[i,v] = (μ_v/(μ_i w_i)) Δ Ru[v,i]ᵀ Δ`,
+///   `Tb[i,v] = (μ_v/(μ_i w_i)) Δ Tu*[v,i]ᵀ Δ` with `Δ = diag(1, 1, −1, 1)`;
+///   test `symmetry_tests::mirror_symmetry_and_reciprocity`);
+/// * the user-by-beam reflection `Ruu` from Chandrasekhar's principles of
+///   invariance (Chandrasekhar 1950, §§50–51: adding a thin layer at the top
+///   and at the bottom must give the same derivative), which is algebraic:
+///   `(λ_u + λ_v) Ruu = ρ_ub (1 − E_u E_v) + Ru (ρ*_b + ρ* Rb) + ρ_u⁺ Rb
+///   − (Tu* ρ + E_u ρ_u) Tb − Tu* ρ_b E_b` with `λ = 1/μ` and the `ρ` the
+///   single-scattering rates of the kernel (per unit optical depth). It is
+///   exact for the discrete-ordinate layer and costs one pass, instead of
+///   carrying the `nu × nu` blocks through every doubling.
+pub fn finish_top(
+    o: &TopOps,
+    k: &Kernel,
+    mu_q: &[f64],
+    w_q: &[f64],
+    mu_u: &[f64],
+    ns: usize,
+    tau: f64,
+) -> Ops {
+    const UP: usize = 0;
+    const DN: usize = 1;
+    let n = o.r.nrows();
+    let nu = o.ru.nrows();
+    let dsign = |p: usize| if ns == 4 && p == 2 { -1.0 } else { 1.0 };
+    let mut rb = Mat::<f64>::zeros(n, nu);
+    let mut tb = Mat::<f64>::zeros(n, nu);
+    for i in 0..mu_q.len() {
+        for v in 0..mu_u.len() {
+            let f = mu_u[v] / (mu_q[i] * w_q[i]);
+            for p in 0..ns {
+                for q in 0..ns {
+                    let s = f * dsign(p) * dsign(q);
+                    rb[(i * ns + p, v * ns + q)] = s * o.ru[(v * ns + q, i * ns + p)];
+                    tb[(i * ns + p, v * ns + q)] = s * o.tus[(v * ns + q, i * ns + p)];
+                }
+            }
+        }
+    }
+    // Single-scattering rates per unit depth.
+    let inv_mu_q = |m: &Mat<f64>| {
+        let mut o = m.clone();
+        for i in 0..o.nrows() {
+            let f = 1.0 / mu_q[i / ns];
+            for j in 0..o.ncols() {
+                o[(i, j)] *= f;
+            }
+        }
+        o
+    };
+    let inv_mu_u = |m: &Mat<f64>| {
+        let mut o = m.clone();
+        for i in 0..o.nrows() {
+            let f = 1.0 / mu_u[i / ns];
+            for j in 0..o.ncols() {
+                o[(i, j)] *= f;
+            }
+        }
+        o
+    };
+    let rho_sb = inv_mu_q(&k.qb[DN][DN]); // quad down <- beam down
+    let rho_s = inv_mu_q(&k.qq[DN][UP]); // quad down <- quad up
+    let rho = inv_mu_q(&k.qq[UP][DN]); // quad up <- quad down
+    let rho_b = inv_mu_q(&k.qb[UP][DN]); // quad up <- beam down
+    let rho_up = inv_mu_u(&k.uq[UP][UP]); // user up <- quad up
+    let rho_u = inv_mu_u(&k.uq[UP][DN]); // user up <- quad down
+    let rho_ub = inv_mu_u(&k.ub[UP][DN]); // user up <- beam down
+
+    // Ru (ρ*_b + ρ* Rb)
+    let mut inner = rho_sb;
+    mm_into(&mut inner, Accum::Add, rho_s.as_ref(), rb.as_ref());
+    let mut acc = mm(o.ru.as_ref(), inner.as_ref());
+    // + ρ_u⁺ Rb
+    mm_into(&mut acc, Accum::Add, rho_up.as_ref(), rb.as_ref());
+    // − (Tu* ρ + E_u ρ_u) Tb
+    let mut left = scale_rows(&rho_u, &o.eu, ns);
+    mm_into(&mut left, Accum::Add, o.tus.as_ref(), rho.as_ref());
+    let lt = mm(left.as_ref(), tb.as_ref());
+    acc -= &lt;
+    // − Tu* ρ_b E_b
+    let tb_dir = mm(o.tus.as_ref(), scale_cols(&rho_b, &o.eu, ns).as_ref());
+    acc -= &tb_dir;
+    let lam: Vec<f64> = mu_u.iter().map(|m| 1.0 / m).collect();
+    let nd = mu_u.len();
+    let mut ruu = Mat::<f64>::zeros(nu, nu);
+    let mut single = vec![0.0; nd];
+    let mut inv_s = vec![0.0; nd];
+    for v in 0..nd {
+        let lv = lam[v];
+        for (u, &lu) in lam.iter().enumerate() {
+            let s = lu + lv;
+            inv_s[u] = 1.0 / s;
+            single[u] = if tau.is_finite() {
+                -(-tau * s).exp_m1()
+            } else {
+                1.0
+            };
+        }
+        for q in 0..ns {
+            let j = v * ns + q;
+            for i in 0..nu {
+                let u = i / ns;
+                ruu[(i, j)] = (rho_ub[(i, j)] * single[u] + acc[(i, j)]) * inv_s[u];
+            }
+        }
+    }
+    let z = |a, b| Mat::<f64>::zeros(a, b);
+    Ops {
+        n,
+        nu,
+        ns,
+        rs: mirror(&o.r, ns),
+        ts: mirror(&o.t, ns),
+        r: o.r.clone(),
+        t: o.t.clone(),
+        ru: o.ru.clone(),
+        tu: z(nu, n),
+        rus: z(nu, n),
+        tus: o.tus.clone(),
+        rb,
+        tb,
+        rbs: z(n, nu),
+        tbs: z(n, nu),
+        ruu,
+        tuu: z(nu, nu),
+        ruus: z(nu, nu),
+        tuus: z(nu, nu),
+        eu: o.eu.clone(),
+    }
+}
+
 /// Phase-matrix blocks of one homogeneous layer for one order, already
 /// multiplied by `ω/2` and (for quadrature columns) by the weights `w_j`:
 /// `k[σ][σ']` with `σ = 0` for upward and `1` for downward travel of the
@@ -449,10 +707,21 @@ pub fn exp_divided_difference(delta: f64, a: f64, b: f64) -> f64 {
 /// [`linear_source_weights`]) plus the exact single-scattering integral of
 /// the beam, so grazing user directions (`δ ≫ μ_u`) stay accurate.
 ///
-/// `mu_q`, `mu_u`: quadrature and user cosines (> 0).
-pub fn thin_layer(k: &Kernel, mu_q: &[f64], mu_u: &[f64], ns: usize, delta: f64) -> Ops {
+/// `mu_q`, `mu_u`: quadrature and user cosines (> 0). With `full = false`
+/// only the blocks [`TopOps`] needs are computed (no beam columns, no user
+/// rows leaving the bottom); the others are returned empty or zero.
+pub fn thin_layer(
+    k: &Kernel,
+    mu_q: &[f64],
+    mu_u: &[f64],
+    ns: usize,
+    delta: f64,
+    full: bool,
+) -> Ops {
     let n = mu_q.len() * ns;
     let nu = mu_u.len() * ns;
+    // Number of beam columns.
+    let nb = if full { nu } else { 0 };
     const UP: usize = 0;
     const DN: usize = 1;
     let inv_mu_q = |i: usize| 1.0 / mu_q[i / ns];
@@ -473,7 +742,7 @@ pub fn thin_layer(k: &Kernel, mu_q: &[f64], mu_u: &[f64], ns: usize, delta: f64)
             kmat[(n + i, n + j)] = id + f * (id - k.qq[UP][UP][(i, j)]);
         }
     }
-    let cols = Cols { n, nu };
+    let cols = Cols { n, nu: nb };
     let w = cols.width();
     let off = cols.offsets();
     let mut rhs = Mat::<f64>::zeros(2 * n, w);
@@ -489,7 +758,7 @@ pub fn thin_layer(k: &Kernel, mu_q: &[f64], mu_u: &[f64], ns: usize, delta: f64)
             rhs[(i, off[2] + j)] = f * k.qq[DN][UP][(i, j)];
             rhs[(n + i, off[2] + j)] = id - f * (id - k.qq[UP][UP][(i, j)]);
         }
-        for j in 0..nu {
+        for j in 0..nb {
             let bi = beam_int[j / ns] * inv_mu_q(i);
             // b columns (beam down from the top), c columns (beam up from the bottom).
             rhs[(i, off[1] + j)] = bi * k.qb[DN][DN][(i, j)];
@@ -524,8 +793,11 @@ pub fn thin_layer(k: &Kernel, mu_q: &[f64], mu_u: &[f64], ns: usize, delta: f64)
     };
     let s_up_0 = src(UP, true);
     let s_up_d = src(UP, false);
-    let s_dn_0 = src(DN, true);
-    let s_dn_d = src(DN, false);
+    let (s_dn_0, s_dn_d) = if full {
+        (src(DN, true), src(DN, false))
+    } else {
+        (Mat::zeros(nu, w), Mat::zeros(nu, w))
+    };
     let mut top_u = Mat::<f64>::zeros(nu, w);
     let mut bot_u = Mat::<f64>::zeros(nu, w);
     for i in 0..nu {
@@ -538,7 +810,7 @@ pub fn thin_layer(k: &Kernel, mu_q: &[f64], mu_u: &[f64], ns: usize, delta: f64)
             bot_u[(i, j)] = a1 * s_dn_0[(i, j)] + a0 * s_dn_d[(i, j)];
         }
         // Exact single scattering of the beams.
-        for j in 0..nu {
+        for j in 0..nb {
             let lv = lam_u[j / ns];
             let same_side = lu * -(-delta * (lu + lv)).exp_m1() / (lu + lv);
             let cross_side = lu * exp_divided_difference(delta, lv, lu);

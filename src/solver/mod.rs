@@ -18,7 +18,7 @@ use crate::physics::expansion::GreekCoefficients;
 use crate::physics::quadrature::double_gauss;
 use crate::physics::stokes::Mueller;
 use faer::Mat;
-use layer::{Kernel, Ops, add, add_mirror, thin_layer};
+use layer::{Kernel, Ops, TopOps, add, add_mirror, double_top, finish_top, thin_layer};
 use phase::{Gsf, a_matrix};
 use rayon::prelude::*;
 
@@ -94,7 +94,7 @@ impl Default for Settings {
         Self {
             streams: 16,
             polarized: true,
-            start_factor: 1e-3,
+            start_factor: 0.1,
             max_order: None,
         }
     }
@@ -222,14 +222,16 @@ fn kernel(grid: &Grid, coef: &GreekCoefficients, albedo: f64, m: usize, polarize
 }
 
 /// Operators of one homogeneous layer for one order: thin start + doubling.
-fn layer_ops(grid: &Grid, layer: &Layer, m: usize, settings: &Settings) -> Ops {
+/// `full = false` carries only what the response at the top needs
+/// ([`layer::double_top`], [`layer::finish_top`]); `full = true` carries every
+/// block (internal fields, mirror bases).
+fn layer_ops(grid: &Grid, layer: &Layer, m: usize, settings: &Settings, full: bool) -> Ops {
     let ns = grid.ns;
     let n = grid.mu_q.len() * ns;
     let nu = grid.mu_u.len() * ns;
     let k = kernel(grid, &layer.coef, layer.albedo, m, settings.polarized);
-    let mu_min = grid.mu_q[0];
-    let d_max = settings.start_factor * mu_min;
-    match layer.thickness {
+    let d_max = settings.start_factor * grid.mu_q[0];
+    let (start, doublings, tau) = match layer.thickness {
         Thickness::Finite(tau) => {
             if tau <= 0.0 {
                 return Ops::vacuum(n, nu, ns);
@@ -240,36 +242,57 @@ fn layer_ops(grid: &Grid, layer: &Layer, m: usize, settings: &Settings) -> Ops {
                 delta *= 0.5;
                 doublings += 1;
             }
-            let mut ops = thin_layer(&k, &grid.mu_q, &grid.mu_u, ns, delta);
-            for _ in 0..doublings {
-                ops = add(&ops, &ops);
-            }
-            ops
+            (delta, Some(doublings), tau)
         }
-        Thickness::Infinite => {
-            let mut ops = thin_layer(&k, &grid.mu_q, &grid.mu_u, ns, d_max);
-            let mut tau = d_max;
-            // Double until nothing is transmitted (or 2^200 start layers).
-            for _ in 0..200 {
-                ops = add(&ops, &ops);
-                tau *= 2.0;
-                if ops.max_abs_t() < 1e-15 && tau > 1.0 {
-                    break;
-                }
-            }
-            // A semi-infinite layer transmits nothing.
-            ops.t.fill(0.0);
-            ops.ts.fill(0.0);
-            ops.tb.fill(0.0);
-            ops.tbs.fill(0.0);
-            ops.tu.fill(0.0);
-            ops.tus.fill(0.0);
-            ops.tuu.fill(0.0);
-            ops.tuus.fill(0.0);
-            ops.eu.iter_mut().for_each(|e| *e = 0.0);
-            ops
+        Thickness::Infinite => (d_max, None, f64::INFINITY),
+    };
+    let thin = thin_layer(&k, &grid.mu_q, &grid.mu_u, ns, start, full);
+    // Semi-infinite: double until nothing is transmitted.
+    let done = |t: &Mat<f64>, steps: u32, thick: f64| match doublings {
+        Some(d) => steps >= d,
+        None => steps >= 200 || (thick > 1.0 && layer::max_abs(t.as_ref()) < 1e-15),
+    };
+    let mut ops = if full {
+        let mut ops = thin;
+        let (mut steps, mut thick) = (0u32, start);
+        while !done(&ops.t, steps, thick) {
+            ops = add(&ops, &ops, true);
+            steps += 1;
+            thick *= 2.0;
         }
+        ops
+    } else {
+        let mut top = TopOps::from_ops(&thin);
+        let (mut steps, mut thick) = (0u32, start);
+        while !done(&top.t, steps, thick) {
+            top = double_top(&top, ns);
+            steps += 1;
+            thick *= 2.0;
+        }
+        if tau.is_infinite() {
+            top.t.fill(0.0);
+            top.tus.fill(0.0);
+            top.eu.iter_mut().for_each(|e| *e = 0.0);
+        }
+        finish_top(&top, &k, &grid.mu_q, &grid.w_q, &grid.mu_u, ns, tau)
+    };
+    if tau.is_infinite() {
+        // A semi-infinite layer transmits nothing.
+        for b in [
+            &mut ops.t,
+            &mut ops.ts,
+            &mut ops.tb,
+            &mut ops.tbs,
+            &mut ops.tu,
+            &mut ops.tus,
+            &mut ops.tuu,
+            &mut ops.tuus,
+        ] {
+            b.fill(0.0);
+        }
+        ops.eu.iter_mut().for_each(|e| *e = 0.0);
     }
+    ops
 }
 
 /// Operators of a Lambertian base for order `m` (only `m = 0` reflects):
@@ -386,6 +409,9 @@ pub fn reflection(problem: &Problem, mu_user: &[f64]) -> Result<ReflectionFourie
         problem.layers.last().map(|l| l.thickness),
         Some(Thickness::Infinite)
     );
+    // The mirror base needs every block (light reflected up by the mirror
+    // scatters in the stack from below).
+    let full = matches!(problem.base, Base::Mirror { .. });
     let rho: Vec<Mat<f64>> = (0..orders)
         .into_par_iter()
         .map(|m| {
@@ -394,10 +420,10 @@ pub fn reflection(problem: &Problem, mu_user: &[f64]) -> Result<ReflectionFourie
                 if matches!(layer.thickness, Thickness::Finite(t) if t <= 0.0) {
                     continue;
                 }
-                let ops = layer_ops(&grid, layer, m, s);
+                let ops = layer_ops(&grid, layer, m, s, full);
                 stack = Some(match stack {
                     None => ops,
-                    Some(top) => add(&top, &ops),
+                    Some(top) => add(&top, &ops, full),
                 });
             }
             let n = grid.mu_q.len() * ns;
@@ -408,7 +434,9 @@ pub fn reflection(problem: &Problem, mu_user: &[f64]) -> Result<ReflectionFourie
             }
             match &problem.base {
                 Base::Black => stack.ruu,
-                Base::Lambertian { albedo } => add(&stack, &lambertian_ops(&grid, *albedo, m)).ruu,
+                Base::Lambertian { albedo } => {
+                    add(&stack, &lambertian_ops(&grid, *albedo, m), false).ruu
+                }
                 Base::Mirror { mueller } => {
                     let mq = mirror_blocks(&grid.mu_q, ns, mueller.as_ref());
                     let mu = mirror_blocks(&grid.mu_u, ns, mueller.as_ref());
@@ -507,10 +535,10 @@ fn slab_ops(grid: &Grid, problem: &Problem, m: usize, from: f64, to: f64) -> Ops
                     ..layer.clone()
                 }
             };
-            let ops = layer_ops(grid, &part, m, &problem.settings);
+            let ops = layer_ops(grid, &part, m, &problem.settings, true);
             stack = Some(match stack {
                 None => ops,
-                Some(s) => add(&s, &ops),
+                Some(s) => add(&s, &ops, true),
             });
         }
         top = bottom;
@@ -551,7 +579,7 @@ pub fn internal_field(
                     let a = slab_ops(&grid, problem, m, 0.0, tau);
                     let mut b = slab_ops(&grid, problem, m, tau, f64::INFINITY);
                     if let Base::Lambertian { albedo } = problem.base {
-                        b = add(&b, &lambertian_ops(&grid, albedo, m));
+                        b = add(&b, &lambertian_ops(&grid, albedo, m), true);
                     }
                     interface_field(&a, &b)
                 })
@@ -652,7 +680,7 @@ mod symmetry_tests {
         let (grid, layer) = gs_layer(0.7);
         let s = Settings::default();
         for m in [0usize, 1, 3] {
-            let o = layer_ops(&grid, &layer, m, &s);
+            let o = layer_ops(&grid, &layer, m, &s, true);
             let n = o.n;
             let mut e_rs: f64 = 0.0;
             let mut e_ts: f64 = 0.0;
@@ -664,7 +692,11 @@ mod symmetry_tests {
             }
             eprintln!("m={m}: |rs - S r S| = {e_rs:.2e}, |ts - S t S| = {e_ts:.2e}");
             // Reciprocity candidates: rb[i,v] = (μv/μi) Δ ru[v,i]^T Δ / w_i.
-            for (name, dd) in [("D4", [1.0, 1.0, 1.0, -1.0]), ("D3", [1.0, 1.0, -1.0, 1.0]), ("I", [1.0; 4])] {
+            for (name, dd) in [
+                ("D4", [1.0, 1.0, 1.0, -1.0]),
+                ("D3", [1.0, 1.0, -1.0, 1.0]),
+                ("I", [1.0; 4]),
+            ] {
                 let mut e_rb: f64 = 0.0;
                 let mut e_tb: f64 = 0.0;
                 let ns = 4;
@@ -682,6 +714,45 @@ mod symmetry_tests {
                     }
                 }
                 eprintln!("   {name}: rb err {e_rb:.2e}, tb err {e_tb:.2e}");
+            }
+        }
+    }
+
+    /// The top-only path (symmetric doubling, reciprocity for beam columns,
+    /// Chandrasekhar's relation for `Ruu`) agrees with carrying every block
+    /// through the doubling, for thin, thick and semi-infinite layers.
+    #[test]
+    fn top_only_path_matches_full_doubling() {
+        // A thin start layer so that both paths are converged in δ and the
+        // comparison tests the identities, not the discretisation.
+        let s = Settings {
+            start_factor: 1e-3,
+            ..Settings::default()
+        };
+        for (tau, thickness) in [
+            (0.03, Thickness::Finite(0.03)),
+            (0.7, Thickness::Finite(0.7)),
+            (12.0, Thickness::Finite(12.0)),
+            (f64::INFINITY, Thickness::Infinite),
+        ] {
+            let (grid, mut layer) = gs_layer(0.7);
+            layer.thickness = thickness;
+            for m in [0usize, 2, 5] {
+                let full = layer_ops(&grid, &layer, m, &s, true);
+                let top = layer_ops(&grid, &layer, m, &s, false);
+                let scale = layer::max_abs(full.ruu.as_ref());
+                let diff = layer::max_abs((&full.ruu - &top.ruu).as_ref());
+                let dr = layer::max_abs((&full.r - &top.r).as_ref());
+                let dru = layer::max_abs((&full.ru - &top.ru).as_ref());
+                eprintln!(
+                    "tau={tau} m={m}: |ΔRuu|/max = {:.2e}, |ΔR| = {dr:.1e}, |ΔRu| = {dru:.1e}",
+                    diff / scale
+                );
+                assert!(
+                    diff <= 1e-7 * scale,
+                    "tau={tau} m={m}: {diff:e} vs {scale:e}"
+                );
+                assert!(dr < 1e-10 && dru < 1e-10);
             }
         }
     }

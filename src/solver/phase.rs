@@ -365,5 +365,4 @@ pub(crate) mod tests_support {
             epsilon: get("epsilon"),
         }
     }
-
 }

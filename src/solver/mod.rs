@@ -506,6 +506,13 @@ pub struct FieldFourier {
     pub up: Vec<Vec<Mat<f64>>>,
     /// Downward radiance per depth and order.
     pub down: Vec<Vec<Mat<f64>>>,
+    /// Upward radiance (Stokes vector per user direction, length `nu`) at
+    /// each depth for unpolarized isotropic illumination of unit radiance on
+    /// the top (azimuth-independent: order 0 only).
+    pub iso_up: Vec<Vec<f64>>,
+    /// Downward radiance for the same illumination, including its
+    /// unscattered part `e^{−τ/μ}` along the user directions.
+    pub iso_down: Vec<Vec<f64>>,
 }
 
 /// Operators of the layers between optical depths `from` and `to` (from the
@@ -588,7 +595,10 @@ pub fn internal_field(
         .collect();
     let mut up = vec![Vec::with_capacity(orders); depths.len()];
     let mut down = vec![Vec::with_capacity(orders); depths.len()];
-    for order in per_order {
+    let mut iso_up = vec![Vec::new(); depths.len()];
+    let mut iso_down = vec![Vec::new(); depths.len()];
+    let nu = grid.mu_u.len() * ns;
+    for (m, order) in per_order.into_iter().enumerate() {
         for (k, (u, d)) in order.into_iter().enumerate() {
             if !layer::max_abs(u.as_ref()).is_finite() || !layer::max_abs(d.as_ref()).is_finite() {
                 return Err(SolverError::NonFinite(format!(
@@ -596,8 +606,12 @@ pub fn internal_field(
                     depths[k]
                 )));
             }
-            up[k].push(u);
-            down[k].push(d);
+            if m == 0 {
+                iso_up[k] = (0..nu).map(|i| u[(i, nu)]).collect();
+                iso_down[k] = (0..nu).map(|i| d[(i, nu)]).collect();
+            }
+            up[k].push(u.as_ref().submatrix(0, 0, nu, nu).to_owned());
+            down[k].push(d.as_ref().submatrix(0, 0, nu, nu).to_owned());
         }
     }
     Ok(FieldFourier {
@@ -606,6 +620,8 @@ pub fn internal_field(
         depths: depths.to_vec(),
         up,
         down,
+        iso_up,
+        iso_down,
     })
 }
 
@@ -613,10 +629,20 @@ pub fn internal_field(
 /// (below, base included) for a beam entering the top of `a`:
 /// `D = G (Tb_a + R*_a Rb_b E_a)`, `U = R_b D + Rb_b E_a`; upward user radiance
 /// is `Ru_b D + Ruu_b E_a`, downward `Tuu_a + Ru*_a U`.
+///
+/// The last column of both results is the response to unpolarized isotropic
+/// illumination of unit radiance on the top in quadrature directions
+/// (`x = 1` on every I component), meaningful for order 0 only; its downward
+/// part includes the unscattered illumination along the user directions.
 fn interface_field(a: &Ops, b: &Ops) -> (Mat<f64>, Mat<f64>) {
     use faer::prelude::*;
     let n = a.n;
     let ns = a.ns;
+    let nu = a.nu;
+    let mut x = Mat::<f64>::zeros(n, 1);
+    for i in (0..n).step_by(ns) {
+        x[(i, 0)] = 1.0;
+    }
     let mut rbb_ea = b.rb.clone();
     for (v, &e) in a.eu.iter().enumerate() {
         for s in 0..ns {
@@ -631,9 +657,22 @@ fn interface_field(a: &Ops, b: &Ops) -> (Mat<f64>, Mat<f64>) {
             g[(i, j)] = if i == j { 1.0 } else { 0.0 } - g[(i, j)];
         }
     }
-    let rhs = &a.tb + layer::mm(a.rs.as_ref(), rbb_ea.as_ref());
+    let mut rhs = Mat::<f64>::zeros(n, nu + 1);
+    let beam = &a.tb + layer::mm(a.rs.as_ref(), rbb_ea.as_ref());
+    rhs.as_mut()
+        .submatrix_mut(0, 0, n, nu)
+        .copy_from(beam.as_ref());
+    let tx = layer::mm(a.t.as_ref(), x.as_ref());
+    rhs.as_mut()
+        .submatrix_mut(0, nu, n, 1)
+        .copy_from(tx.as_ref());
     let d = g.partial_piv_lu().solve(&rhs);
-    let u = layer::mm(b.r.as_ref(), d.as_ref()) + &rbb_ea;
+    let mut rbb_ea_x = Mat::<f64>::zeros(n, nu + 1);
+    rbb_ea_x
+        .as_mut()
+        .submatrix_mut(0, 0, n, nu)
+        .copy_from(rbb_ea.as_ref());
+    let u = layer::mm(b.r.as_ref(), d.as_ref()) + &rbb_ea_x;
     let mut ruub_ea = b.ruu.clone();
     for (v, &e) in a.eu.iter().enumerate() {
         for s in 0..ns {
@@ -642,8 +681,21 @@ fn interface_field(a: &Ops, b: &Ops) -> (Mat<f64>, Mat<f64>) {
             }
         }
     }
-    let up = layer::mm(b.ru.as_ref(), d.as_ref()) + ruub_ea;
-    let down = &a.tuu + layer::mm(a.rus.as_ref(), u.as_ref());
+    let mut up = layer::mm(b.ru.as_ref(), d.as_ref());
+    let mut down = layer::mm(a.rus.as_ref(), u.as_ref());
+    for j in 0..nu {
+        for i in 0..nu {
+            up[(i, j)] += ruub_ea[(i, j)];
+            down[(i, j)] += a.tuu[(i, j)];
+        }
+    }
+    let tux = layer::mm(a.tu.as_ref(), x.as_ref());
+    for i in 0..nu {
+        down[(i, nu)] += tux[(i, 0)];
+        if i % ns == 0 {
+            down[(i, nu)] += a.eu[i / ns];
+        }
+    }
     (up, down)
 }
 

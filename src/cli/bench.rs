@@ -3,6 +3,7 @@
 use crate::physics::{self, RefractiveIndex};
 use crate::solver::{self, Base, Layer, Problem, Settings, Thickness};
 use clap::{Args, Subcommand};
+use rayon::prelude::*;
 use serde_json::{Value, json};
 use std::time::Instant;
 
@@ -49,10 +50,12 @@ pub fn run(cmd: &BenchCommand) -> Result<Value, String> {
     }
 }
 
-/// The seed's table grid: 51 polar angles 0..90° (incident and outgoing) and
-/// 61 azimuths 0..360°.
+/// The seed's table size: 51 polar angles (incident and outgoing) at the
+/// midpoints of 51 equal steps of 0..90° (0.88°..89.12°: the horizon itself,
+/// where the single-scattering BRDF diverges like 1/(μ + μ0), is left out so
+/// that "relative to max f11" means something) and 61 azimuths 0..360°.
 pub fn seed_grid() -> (Vec<f64>, Vec<f64>) {
-    let theta: Vec<f64> = (0..51).map(|k| 90.0 * k as f64 / 50.0).collect();
+    let theta: Vec<f64> = (0..51).map(|k| 90.0 * (k as f64 + 0.5) / 51.0).collect();
     let phi: Vec<f64> = (0..61).map(|k| 360.0 * k as f64 / 60.0).collect();
     (theta, phi)
 }
@@ -85,18 +88,24 @@ fn table_f11(problem: &Problem) -> Result<Vec<f64>, String> {
         .collect();
     let set = super::solve::MuSet::new(mu.iter().cloned());
     let refl = solver::reflection(problem, &set.mu).map_err(|e| e.to_string())?;
-    let mut out = Vec::with_capacity(51 * 51 * 61);
-    for &mi in &mu {
-        let iv = set.index(mi);
-        for &mo in &mu {
-            let iu = set.index(mo);
-            for &p in &phi {
-                let m = refl.brdf(iu, iv, (p - 180.0).to_radians());
-                out.push(m[0][0]);
+    let dphi: Vec<f64> = phi.iter().map(|p| (p - 180.0).to_radians()).collect();
+    let basis = refl.azimuth_basis(&dphi);
+    // The full Mueller matrix is synthesised (f11 is what is compared).
+    let out: Vec<Vec<f64>> = mu
+        .par_iter()
+        .map(|&mi| {
+            let iv = set.index(mi);
+            let mut row = Vec::with_capacity(mu.len() * phi.len());
+            for &mo in &mu {
+                let iu = set.index(mo);
+                for b in &basis {
+                    row.push(refl.brdf_with_basis(iu, iv, b)[0][0]);
+                }
             }
-        }
-    }
-    Ok(out)
+            row
+        })
+        .collect();
+    Ok(out.concat())
 }
 
 fn table(a: &TableArgs) -> Result<Value, String> {

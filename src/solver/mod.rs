@@ -140,6 +140,47 @@ pub struct ReflectionFourier {
 }
 
 impl ReflectionFourier {
+    /// `cos mΔφ` and `sin mΔφ` for every order and the given propagation
+    /// azimuth differences: `basis[k][m] = (cos, sin)`; reuse it for many
+    /// direction pairs with [`ReflectionFourier::brdf_with_basis`].
+    pub fn azimuth_basis(&self, dphi_prop: &[f64]) -> Vec<Vec<(f64, f64)>> {
+        dphi_prop
+            .iter()
+            .map(|&d| {
+                (0..self.rho.len())
+                    .map(|m| {
+                        let (s, c) = (m as f64 * d).sin_cos();
+                        (c, s)
+                    })
+                    .collect()
+            })
+            .collect()
+    }
+
+    /// [`ReflectionFourier::brdf`] with precomputed `cos mΔφ`, `sin mΔφ`.
+    pub fn brdf_with_basis(&self, iu: usize, iv: usize, basis: &[(f64, f64)]) -> Mueller {
+        let ns = self.ns;
+        let mut f = [[0.0; 4]; 4];
+        let inv = 1.0 / (2.0 * std::f64::consts::PI * self.mu[iv]);
+        for (m, rho) in self.rho.iter().enumerate() {
+            let w = if m == 0 { inv } else { 2.0 * inv };
+            let (c, s) = basis[m];
+            let (wc, ws) = (w * c, w * s);
+            for q in 0..ns {
+                let col = rho.col(iv * ns + q);
+                for p in 0..ns {
+                    let v = col[iu * ns + p];
+                    f[p][q] += match (p < 2, q < 2) {
+                        (true, true) | (false, false) => v * wc,
+                        (false, true) => v * ws,
+                        (true, false) => -v * ws,
+                    };
+                }
+            }
+        }
+        f
+    }
+
     /// The Mueller BRDF (1/sr, conventions §6) for incident cosine `mu[iv]`,
     /// outgoing `mu[iu]` and **propagation** azimuth difference `dphi_prop`
     /// (radians, 0 = forward side). Scalar results fill `[0][0]` only.
@@ -183,7 +224,18 @@ struct Grid {
 }
 
 /// Phase kernel of one layer for order `m`.
-fn kernel(grid: &Grid, coef: &GreekCoefficients, albedo: f64, m: usize, polarized: bool) -> Kernel {
+///
+/// With `full = false` only the blocks the top-only path reads are built
+/// (the others are left empty): quadrature ← quadrature, user-up ←
+/// quadrature, quadrature ← beam-down and user-up ← beam-down.
+fn kernel(
+    grid: &Grid,
+    coef: &GreekCoefficients,
+    albedo: f64,
+    m: usize,
+    polarized: bool,
+    full: bool,
+) -> Kernel {
     let ns = grid.ns;
     let l_max = coef.beta.len().saturating_sub(1);
     let gsf = |mus: &[f64], sign: f64| -> Vec<Gsf> {
@@ -210,14 +262,29 @@ fn kernel(grid: &Grid, coef: &GreekCoefficients, albedo: f64, m: usize, polarize
         mat
     };
     let wq = Some(grid.w_q.as_slice());
-    let b4 = |out: &[Vec<Gsf>; 2], inp: &[Vec<Gsf>; 2], w: Option<&[f64]>| -> [[Mat<f64>; 2]; 2] {
-        std::array::from_fn(|s| std::array::from_fn(|t| block(&out[s], &inp[t], w)))
+    // `need(s, t)`: is block (output direction s, input direction t) read?
+    let b4 = |out: &[Vec<Gsf>; 2],
+              inp: &[Vec<Gsf>; 2],
+              w: Option<&[f64]>,
+              need: &dyn Fn(usize, usize) -> bool|
+     -> [[Mat<f64>; 2]; 2] {
+        std::array::from_fn(|s| {
+            std::array::from_fn(|t| {
+                if full || need(s, t) {
+                    block(&out[s], &inp[t], w)
+                } else {
+                    Mat::zeros(0, 0)
+                }
+            })
+        })
     };
+    const UP: usize = 0;
+    const DN: usize = 1;
     Kernel {
-        qq: b4(&gq, &gq, wq),
-        uq: b4(&gu, &gq, wq),
-        qb: b4(&gq, &gu, None),
-        ub: b4(&gu, &gu, None),
+        qq: b4(&gq, &gq, wq, &|_, _| true),
+        uq: b4(&gu, &gq, wq, &|s, _| s == UP),
+        qb: b4(&gq, &gu, None, &|_, t| t == DN),
+        ub: b4(&gu, &gu, None, &|s, t| s == UP && t == DN),
     }
 }
 
@@ -229,7 +296,7 @@ fn layer_ops(grid: &Grid, layer: &Layer, m: usize, settings: &Settings, full: bo
     let ns = grid.ns;
     let n = grid.mu_q.len() * ns;
     let nu = grid.mu_u.len() * ns;
-    let k = kernel(grid, &layer.coef, layer.albedo, m, settings.polarized);
+    let k = kernel(grid, &layer.coef, layer.albedo, m, settings.polarized, full);
     let d_max = settings.start_factor * grid.mu_q[0];
     let (start, doublings, tau) = match layer.thickness {
         Thickness::Finite(tau) => {

@@ -87,6 +87,9 @@ pub struct Settings {
     /// Highest Fourier order to compute (`None`: all orders the phase
     /// matrices carry).
     pub max_order: Option<usize>,
+    /// Stop the Fourier series after two consecutive orders whose largest
+    /// BRDF coefficient is below this fraction of order 0's.
+    pub fourier_tolerance: f64,
 }
 
 impl Default for Settings {
@@ -96,6 +99,7 @@ impl Default for Settings {
             polarized: true,
             start_factor: 0.1,
             max_order: None,
+            fourier_tolerance: 1e-9,
         }
     }
 }
@@ -479,42 +483,74 @@ pub fn reflection(problem: &Problem, mu_user: &[f64]) -> Result<ReflectionFourie
     // The mirror base needs every block (light reflected up by the mirror
     // scatters in the stack from below).
     let full = matches!(problem.base, Base::Mirror { .. });
-    let rho: Vec<Mat<f64>> = (0..orders)
-        .into_par_iter()
-        .map(|m| {
-            let mut stack: Option<Ops> = None;
-            for layer in &problem.layers {
-                if matches!(layer.thickness, Thickness::Finite(t) if t <= 0.0) {
-                    continue;
-                }
-                let ops = layer_ops(&grid, layer, m, s, full);
-                stack = Some(match stack {
-                    None => ops,
-                    Some(top) => add(&top, &ops, full),
-                });
+    let one_order = |m: usize| -> Mat<f64> {
+        let mut stack: Option<Ops> = None;
+        for layer in &problem.layers {
+            if matches!(layer.thickness, Thickness::Finite(t) if t <= 0.0) {
+                continue;
             }
-            let n = grid.mu_q.len() * ns;
-            let nu = grid.mu_u.len() * ns;
-            let stack = stack.unwrap_or_else(|| Ops::vacuum(n, nu, ns));
-            if semi_infinite {
-                return stack.ruu;
+            let ops = layer_ops(&grid, layer, m, s, full);
+            stack = Some(match stack {
+                None => ops,
+                Some(top) => add(&top, &ops, full),
+            });
+        }
+        let n = grid.mu_q.len() * ns;
+        let nu = grid.mu_u.len() * ns;
+        let stack = stack.unwrap_or_else(|| Ops::vacuum(n, nu, ns));
+        if semi_infinite {
+            return stack.ruu;
+        }
+        match &problem.base {
+            Base::Black => stack.ruu,
+            Base::Lambertian { albedo } => {
+                add(&stack, &lambertian_ops(&grid, *albedo, m), false).ruu
             }
-            match &problem.base {
-                Base::Black => stack.ruu,
-                Base::Lambertian { albedo } => {
-                    add(&stack, &lambertian_ops(&grid, *albedo, m), false).ruu
-                }
-                Base::Mirror { mueller } => {
-                    let mq = mirror_blocks(&grid.mu_q, ns, mueller.as_ref());
-                    let mu = mirror_blocks(&grid.mu_u, ns, mueller.as_ref());
-                    add_mirror(&stack, &mq, &mu).ruu
-                }
+            Base::Mirror { mueller } => {
+                let mq = mirror_blocks(&grid.mu_q, ns, mueller.as_ref());
+                let mu = mirror_blocks(&grid.mu_u, ns, mueller.as_ref());
+                add_mirror(&stack, &mq, &mu).ruu
             }
-        })
-        .collect();
-    for (m, r) in rho.iter().enumerate() {
-        if !layer::max_abs(r.as_ref()).is_finite() {
-            return Err(SolverError::NonFinite(format!("Fourier order {m}")));
+        }
+    };
+    // Orders in parallel batches; stop once two consecutive orders add less
+    // than `fourier_tolerance` of the largest BRDF coefficient of order 0
+    // (scaled by 1/μ0 as in the BRDF).
+    let batch = rayon::current_num_threads().max(1);
+    let scaled_max = |r: &Mat<f64>| -> f64 {
+        let mut v: f64 = 0.0;
+        for j in 0..r.ncols() {
+            let inv = 1.0 / grid.mu_u[j / ns];
+            for i in 0..r.nrows() {
+                v = v.max(r[(i, j)].abs() * inv);
+            }
+        }
+        v
+    };
+    let mut rho: Vec<Mat<f64>> = Vec::new();
+    let mut reference = 0.0;
+    let mut small_run = 0;
+    'orders: while rho.len() < orders {
+        let lo = rho.len();
+        let hi = (lo + batch).min(orders);
+        let part: Vec<Mat<f64>> = (lo..hi).into_par_iter().map(one_order).collect();
+        for (k, r) in part.into_iter().enumerate() {
+            let size = scaled_max(&r);
+            if !size.is_finite() {
+                return Err(SolverError::NonFinite(format!("Fourier order {}", lo + k)));
+            }
+            if lo + k == 0 {
+                reference = size;
+            }
+            rho.push(r);
+            small_run = if size <= s.fourier_tolerance * reference {
+                small_run + 1
+            } else {
+                0
+            };
+            if small_run >= 2 {
+                break 'orders;
+            }
         }
     }
     let tau_total: f64 = problem

@@ -116,10 +116,21 @@ impl Ops {
 /// `X ← X + G⁻¹(B − G X)`. In thick conservative layers `G = I − R* R` is
 /// nearly singular (its condition grows like τ); refinement keeps the
 /// doubling's flux balance at round-off level.
-fn refined_solve(g: &Mat<f64>, lu: &faer::linalg::solvers::PartialPivLu<f64>, b: &Mat<f64>) -> Mat<f64> {
+fn refined_solve(
+    g: &Mat<f64>,
+    lu: &faer::linalg::solvers::PartialPivLu<f64>,
+    b: &Mat<f64>,
+) -> Mat<f64> {
     let mut x = lu.solve(b);
     let mut r = b.clone();
-    matmul(r.as_mut(), Accum::Add, g.as_ref(), x.as_ref(), -1.0, Par::Seq);
+    matmul(
+        r.as_mut(),
+        Accum::Add,
+        g.as_ref(),
+        x.as_ref(),
+        -1.0,
+        Par::Seq,
+    );
     let dx = lu.solve(&r);
     x += &dx;
     x

@@ -103,8 +103,12 @@ fn table_f11(problem: &Problem) -> Result<Vec<f64>, String> {
             let mut row = Vec::with_capacity(mu.len() * phi.len());
             for &mo in &mu {
                 let iu = set.index(mo);
-                for b in &basis {
-                    row.push(refl.brdf_with_basis(iu, iv, b)[0][0]);
+                for (b, &d) in basis.iter().zip(&dphi) {
+                    let mut f11 = refl.brdf_with_basis(iu, iv, b)[0][0];
+                    if let Some(c) = &refl.correction {
+                        f11 += c.brdf(set.mu[iu], set.mu[iv], d)[0][0];
+                    }
+                    row.push(f11);
                 }
             }
             row

@@ -13,6 +13,7 @@
 
 pub mod layer;
 pub mod phase;
+pub mod truncation;
 
 use crate::physics::expansion::GreekCoefficients;
 use crate::physics::quadrature::double_gauss;
@@ -90,6 +91,10 @@ pub struct Settings {
     /// Stop the Fourier series after two consecutive orders whose largest
     /// BRDF coefficient is below this fraction of order 0's.
     pub fourier_tolerance: f64,
+    /// Delta-M truncation of series longer than `2N` terms plus the exact
+    /// single-scattering correction at user angles ([`truncation`]); a no-op
+    /// when every series fits the quadrature.
+    pub delta_m: bool,
 }
 
 impl Default for Settings {
@@ -100,6 +105,7 @@ impl Default for Settings {
             start_factor: 0.1,
             max_order: None,
             fourier_tolerance: 1e-9,
+            delta_m: true,
         }
     }
 }
@@ -141,6 +147,9 @@ pub struct ReflectionFourier {
     /// Total direct transmission of the stack along each user direction
     /// (down and back up is its square), for the specular term.
     pub direct: Vec<f64>,
+    /// Exact-minus-truncated single scattering when delta-M truncated a
+    /// layer; [`ReflectionFourier::brdf`] adds it.
+    pub correction: Option<truncation::SingleScatterCorrection>,
 }
 
 impl ReflectionFourier {
@@ -161,7 +170,9 @@ impl ReflectionFourier {
             .collect()
     }
 
-    /// [`ReflectionFourier::brdf`] with precomputed `cos mΔφ`, `sin mΔφ`.
+    /// [`ReflectionFourier::brdf`] with precomputed `cos mΔφ`, `sin mΔφ`:
+    /// the Fourier part only. When [`ReflectionFourier::correction`] is set,
+    /// add its value at the same angles.
     pub fn brdf_with_basis(&self, iu: usize, iv: usize, basis: &[(f64, f64)]) -> Mueller {
         let ns = self.ns;
         let mut f = [[0.0; 4]; 4];
@@ -187,7 +198,9 @@ impl ReflectionFourier {
 
     /// The Mueller BRDF (1/sr, conventions §6) for incident cosine `mu[iv]`,
     /// outgoing `mu[iu]` and **propagation** azimuth difference `dphi_prop`
-    /// (radians, 0 = forward side). Scalar results fill `[0][0]` only.
+    /// (radians, 0 = forward side), including the single-scattering
+    /// correction of a delta-M truncated solve. Scalar results fill `[0][0]`
+    /// only.
     ///
     /// `f μ_0 = Σ_m (2 − δ_m0)/(2π) [bd(ρ^m) cos mΔφ + od(ρ^m) sin mΔφ]`
     /// with `od` as in [`phase`] (UV←IQ block `+`, IQ←UV block `−`).
@@ -213,6 +226,14 @@ impl ReflectionFourier {
         for row in &mut f {
             for x in row.iter_mut() {
                 *x /= mu0;
+            }
+        }
+        if let Some(c) = &self.correction {
+            let d = c.brdf(self.mu[iu], mu0, dphi_prop);
+            for p in 0..ns {
+                for q in 0..ns {
+                    f[p][q] += d[p][q];
+                }
             }
         }
         f
@@ -466,6 +487,13 @@ fn validate(problem: &Problem, mu_user: &[f64]) -> Result<(), SolverError> {
 /// `mu_user` (each in `(0, 1]`), all Fourier orders.
 pub fn reflection(problem: &Problem, mu_user: &[f64]) -> Result<ReflectionFourier, SolverError> {
     validate(problem, mu_user)?;
+    let original = problem;
+    let truncated = if problem.settings.delta_m {
+        Some(truncation::delta_m(problem)?)
+    } else {
+        None
+    };
+    let problem = truncated.as_ref().map_or(problem, |t| &t.problem);
     let s = &problem.settings;
     let ns = if s.polarized { 4 } else { 1 };
     let (mu_q, w_q) = double_gauss(s.streams);
@@ -553,7 +581,7 @@ pub fn reflection(problem: &Problem, mu_user: &[f64]) -> Result<ReflectionFourie
             }
         }
     }
-    let tau_total: f64 = problem
+    let tau_total: f64 = original
         .layers
         .iter()
         .map(|l| match l.thickness {
@@ -566,6 +594,7 @@ pub fn reflection(problem: &Problem, mu_user: &[f64]) -> Result<ReflectionFourie
         mu: grid.mu_u.clone(),
         rho,
         direct: grid.mu_u.iter().map(|m| (-tau_total / m).exp()).collect(),
+        correction: truncated.and_then(|t| t.correction),
     })
 }
 

@@ -105,6 +105,39 @@ impl Ops {
         o
     }
 
+    /// Assemble from the four output row blocks, each with input columns
+    /// `[x | b | y | c]` (see `Cols`): quadrature light leaving the top,
+    /// quadrature light leaving the bottom, user radiance leaving the top,
+    /// user radiance leaving the bottom.
+    fn from_column_blocks(cols: &Cols, ns: usize, rows: [&Mat<f64>; 4], eu: Vec<f64>) -> Self {
+        let [r, rb, ts, tbs] = cols.split(rows[0]);
+        let [t, tb, rs, rbs] = cols.split(rows[1]);
+        let [ru, ruu, tus, tuus] = cols.split(rows[2]);
+        let [tu, tuu, rus, ruus] = cols.split(rows[3]);
+        Self {
+            n: cols.n,
+            nu: ru.nrows(),
+            ns,
+            r,
+            t,
+            rs,
+            ts,
+            ru,
+            tu,
+            rus,
+            tus,
+            rb,
+            tb,
+            rbs,
+            tbs,
+            ruu,
+            tuu,
+            ruus,
+            tuus,
+            eu,
+        }
+    }
+
     /// Largest absolute entry of the quadrature transmission (used to stop
     /// doubling a semi-infinite layer).
     pub fn max_abs_t(&self) -> f64 {
@@ -318,32 +351,8 @@ pub fn add(a: &Ops, b: &Ops, full: bool) -> Ops {
     let from_a = scale_rows(&from_a, &b.eu, ns);
     bot_u += &from_a;
 
-    let [r, rb, ts, tbs] = cols.split(&top_q);
-    let [t, tb, rs, rbs] = cols.split(&bot_q);
-    let [ru, ruu, tus, tuus] = cols.split(&top_u);
-    let [tu, tuu, rus, ruus] = cols.split(&bot_u);
-    Ops {
-        n,
-        nu,
-        ns,
-        r,
-        t,
-        rs,
-        ts,
-        ru,
-        tu,
-        rus,
-        tus,
-        rb,
-        tb,
-        rbs,
-        tbs,
-        ruu,
-        tuu,
-        ruus,
-        tuus,
-        eu: a.eu.iter().zip(&b.eu).map(|(x, y)| x * y).collect(),
-    }
+    let eu = a.eu.iter().zip(&b.eu).map(|(x, y)| x * y).collect();
+    Ops::from_column_blocks(&cols, ns, [&top_q, &bot_q, &top_u, &bot_u], eu)
 }
 
 /// Result of putting a stack on a specular (mirror) base: the operators seen
@@ -794,8 +803,6 @@ pub fn thin_layer(
     let z = kmat.partial_piv_lu().solve(&rhs);
     let dn_bottom = z.as_ref().submatrix(0, 0, n, w).to_owned(); // I−(δ)
     let up_top = z.as_ref().submatrix(n, 0, n, w).to_owned(); // I+(0)
-    let [t, tb, rs, rbs] = cols.split(&dn_bottom);
-    let [r, rb, ts, tbs] = cols.split(&up_top);
 
     // Quadrature radiance at both faces for every input column.
     let mut dn_top = Mat::<f64>::zeros(n, w); // I−(0): the x input itself
@@ -844,30 +851,8 @@ pub fn thin_layer(
             bot_u[(i, off[3] + j)] += same_side * k.ub[DN][UP][(i, j)];
         }
     }
-    let [ru, ruu, tus, tuus] = cols.split(&top_u);
-    let [tu, tuu, rus, ruus] = cols.split(&bot_u);
-    Ops {
-        n,
-        nu,
-        ns,
-        r,
-        t,
-        rs,
-        ts,
-        ru,
-        tu,
-        rus,
-        tus,
-        rb,
-        tb,
-        rbs,
-        tbs,
-        ruu,
-        tuu,
-        ruus,
-        tuus,
-        eu: mu_u.iter().map(|m| (-delta / m).exp()).collect(),
-    }
+    let eu = mu_u.iter().map(|m| (-delta / m).exp()).collect();
+    Ops::from_column_blocks(&cols, ns, [&up_top, &dn_bottom, &top_u, &bot_u], eu)
 }
 
 #[cfg(test)]

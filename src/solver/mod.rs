@@ -206,22 +206,7 @@ impl ReflectionFourier {
     /// with `od` as in [`phase`] (UV←IQ block `+`, IQ←UV block `−`).
     pub fn brdf(&self, iu: usize, iv: usize, dphi_prop: f64) -> Mueller {
         let ns = self.ns;
-        let mut f = [[0.0; 4]; 4];
-        for (m, rho) in self.rho.iter().enumerate() {
-            let w = if m == 0 { 1.0 } else { 2.0 } / (2.0 * std::f64::consts::PI);
-            let (s, c) = (m as f64 * dphi_prop).sin_cos();
-            for p in 0..ns {
-                for q in 0..ns {
-                    let v = rho[(iu * ns + p, iv * ns + q)];
-                    let term = match (p < 2, q < 2) {
-                        (true, true) | (false, false) => v * c,
-                        (false, true) => v * s,
-                        (true, false) => -v * s,
-                    };
-                    f[p][q] += w * term;
-                }
-            }
-        }
+        let mut f = fourier_sum(&self.rho, ns, iu, iv, dphi_prop);
         let mu0 = self.mu[iv];
         for row in &mut f {
             for x in row.iter_mut() {

@@ -2,6 +2,7 @@
 //! library, prints JSON; errors are one line on stderr and a non-zero exit.
 
 pub mod bench;
+pub mod convergence;
 pub mod mie;
 pub mod solve;
 
@@ -30,6 +31,8 @@ enum Command {
         #[arg(long)]
         field: Option<String>,
     },
+    /// Error against run time: solve at increasing streams, compare with a reference.
+    Convergence(convergence::ConvergenceArgs),
     /// Benchmarks (timings go to docs/performance.md).
     #[command(subcommand)]
     Bench(bench::BenchCommand),
@@ -45,6 +48,7 @@ pub fn main() -> i32 {
             points,
             field,
         } => solve::run(&spec, points.as_deref(), field.as_deref()),
+        Command::Convergence(a) => convergence::run(&a),
         Command::Bench(b) => bench::run(&b),
     };
     match result {

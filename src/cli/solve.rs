@@ -149,8 +149,24 @@ pub fn run(
         }));
         let mut pts = Vec::new();
         let mut spec_terms = Vec::new();
+        let mut estimate = Value::Null;
+        let mut streams_used = problem.settings.streams;
         if !set.mu.is_empty() {
-            let refl = solver::reflection(&problem, &set.mu).map_err(|e| e.to_string())?;
+            let solved = match spec::stream_policy(&spec) {
+                spec::StreamPolicy::Fixed(_) => {
+                    solver::accuracy::reflection_with_estimate(&problem, &set.mu)
+                }
+                spec::StreamPolicy::Tolerance(t) => solver::accuracy::reflection_to_tolerance(
+                    &problem,
+                    &set.mu,
+                    t,
+                    spec::MAX_STREAMS,
+                ),
+            }
+            .map_err(|e| e.to_string())?;
+            estimate = serde_json::to_value(&solved.estimate).expect("JSON");
+            streams_used = solved.estimate.streams[2];
+            let refl = solved.reflection;
             orders = refl.rho.len();
             for p in &points {
                 let iu = set.index(mu_of_theta_deg(p.theta_o_deg));
@@ -215,8 +231,8 @@ pub fn run(
         let ms = start.elapsed().as_secs_f64() * 1e3;
         out.insert(
             "solver".into(),
-            json!({"streams": problem.settings.streams, "polarized": problem.settings.polarized,
-                   "fourier_orders": orders, "wall_time_ms": ms}),
+            json!({"streams": streams_used, "polarized": problem.settings.polarized,
+                   "fourier_orders": orders, "wall_time_ms": ms, "error_estimate": estimate}),
         );
         results.push(Value::Object(out));
     }

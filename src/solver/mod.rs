@@ -11,6 +11,7 @@
 //! Pure: no I/O, deterministic. Parallel over Fourier orders (rayon) with
 //! faer sequential underneath.
 
+pub mod accuracy;
 pub mod layer;
 pub mod phase;
 pub mod truncation;

@@ -2,6 +2,8 @@
 //! (docs/spec.md). Parsing with JSON paths in every error, validation of
 //! ranges, and conversion into solver problems, one per wavelength.
 
+pub mod canonical;
+
 use crate::physics::expansion::GreekCoefficients;
 use crate::physics::{RefractiveIndex, fresnel, materials};
 use crate::solver::{self, Base, Layer, Problem, Settings, Thickness};
@@ -197,17 +199,22 @@ pub enum BaseSpec {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SolverSpec {
-    /// Quadrature points per hemisphere.
-    #[serde(default = "default_streams")]
-    pub streams: usize,
+    /// Quadrature points per hemisphere; explicit streams win over
+    /// `tolerance`. Default 16 when neither is given.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub streams: Option<usize>,
+    /// Requested accuracy (estimated max error of f11 relative to max f11):
+    /// the solver picks the cheapest stream count predicted to meet it
+    /// (`solver::accuracy`). Ignored when `streams` is given.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tolerance: Option<f64>,
     /// Vector (true) or scalar (false) radiative transfer.
     #[serde(default = "yes")]
     pub polarized: bool,
 }
 
-fn default_streams() -> usize {
-    16
-}
+/// Streams when neither `streams` nor `tolerance` is given.
+pub const DEFAULT_STREAMS: usize = 16;
 fn yes() -> bool {
     true
 }
@@ -215,8 +222,9 @@ fn yes() -> bool {
 impl Default for SolverSpec {
     fn default() -> Self {
         Self {
-            streams: default_streams(),
+            streams: None,
             polarized: true,
+            tolerance: None,
         }
     }
 }
@@ -458,14 +466,16 @@ pub fn validate(spec: &Spec) -> Result<(), SpecError> {
             }
         }
     }
-    if spec.solver.streams == 0 || spec.solver.streams > MAX_STREAMS {
-        return Err(SpecError::new(
-            "solver.streams",
-            format!(
-                "{} is outside the allowed range [1, {MAX_STREAMS}]",
-                spec.solver.streams
-            ),
-        ));
+    if let Some(n) = spec.solver.streams {
+        if n == 0 || n > MAX_STREAMS {
+            return Err(SpecError::new(
+                "solver.streams",
+                format!("{n} is outside the allowed range [1, {MAX_STREAMS}]"),
+            ));
+        }
+    }
+    if let Some(t) = spec.solver.tolerance {
+        finite_in("solver.tolerance", t, 1e-10, 0.5, "[1e-10, 0.5]")?;
     }
     Ok(())
 }
@@ -631,11 +641,30 @@ pub fn problem(spec: &Spec, wavelength_nm: Option<f64>) -> Result<Problem, SpecE
         layers,
         base,
         settings: Settings {
-            streams: spec.solver.streams,
+            streams: spec.solver.streams.unwrap_or(DEFAULT_STREAMS),
             polarized: spec.solver.polarized,
             ..Settings::default()
         },
     })
+}
+
+/// How the number of streams is chosen.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum StreamPolicy {
+    /// Exactly this many streams (given, or the default).
+    Fixed(usize),
+    /// The cheapest power of two up to [`MAX_STREAMS`] meeting this
+    /// estimated relative error of f11.
+    Tolerance(f64),
+}
+
+/// The stream policy of a spec: explicit streams win over a tolerance.
+pub fn stream_policy(spec: &Spec) -> StreamPolicy {
+    match (spec.solver.streams, spec.solver.tolerance) {
+        (Some(n), _) => StreamPolicy::Fixed(n),
+        (None, Some(t)) => StreamPolicy::Tolerance(t),
+        (None, None) => StreamPolicy::Fixed(DEFAULT_STREAMS),
+    }
 }
 
 /// The wavelengths to solve: the listed ones, or one wavelength-free run.

@@ -161,7 +161,8 @@ mod tests {
         let limit = [1.0, 2.0, 0.5];
         let at = |k: i32| -> Vec<f64> { limit.iter().map(|x| x + 0.3 * 0.25f64.powi(k)).collect() };
         let (est, r) = tail_estimate(&at(0), &at(1), &at(2));
-        let true_err = 0.3 * 0.25f64.powi(2) / 2.0;
+        // Remaining error c r², relative to max f of the finest level.
+        let true_err = 0.3 * 0.25f64.powi(2) / (2.0 + 0.3 * 0.25f64.powi(2));
         assert!((r - 0.25).abs() < 1e-12);
         assert!(
             (est - true_err).abs() < 1e-12 * true_err.max(1.0),

@@ -5,7 +5,7 @@
 //! Spurr 2006, and Hu et al. 2000): with `N` streams per hemisphere the
 //! quadrature integrates the series exactly up to `l = 2N − 1`. The part of
 //! the forward peak beyond it is treated as unscattered light: with
-//! `f = β_{2N} / (4N + 1)` the truncated coefficients are
+//! `f = max(0, β_{2N} / (4N + 1))` the truncated coefficients are
 //! `x'_l = (x_l − (2l+1) f)/(1 − f)` for the diagonal series β, δ (all `l`)
 //! and α, ζ (`l ≥ 2`, where `d^l_22` exists), `x'_l = x_l/(1 − f)` for γ, ε,
 //! `l = 0 … 2N − 1`, and the layer is scaled to `τ' = (1 − ωf) τ`,
@@ -88,7 +88,9 @@ pub fn delta_m(problem: &Problem) -> Result<Truncated, SolverError> {
             continue;
         }
         any = true;
-        let f = c.beta[keep] / (2.0 * keep as f64 + 1.0);
+        // A negative β_{2N} (possible for Mie series) has no forward-peak
+        // meaning: then the series is only truncated (f = 0).
+        let f = (c.beta[keep] / (2.0 * keep as f64 + 1.0)).max(0.0);
         let w = layer.albedo;
         if !(0.0..1.0).contains(&f) || 1.0 - w * f <= 0.0 {
             return Err(SolverError::Invalid(format!(

@@ -5,6 +5,9 @@
 //! Conventions (units, Stokes frames, signs) are in `docs/conventions.md`.
 
 pub mod cli;
+pub mod http;
+pub mod jobs;
 pub mod physics;
 pub mod solver;
 pub mod spec;
+pub mod storage;

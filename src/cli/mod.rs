@@ -4,6 +4,7 @@
 pub mod bench;
 pub mod convergence;
 pub mod mie;
+pub mod serve;
 pub mod solve;
 
 use clap::{Parser, Subcommand};
@@ -33,6 +34,8 @@ enum Command {
     },
     /// Error against run time: solve at increasing streams, compare with a reference.
     Convergence(convergence::ConvergenceArgs),
+    /// Run the HTTP service (docs/service.md).
+    Serve(serve::ServeArgs),
     /// Benchmarks (timings go to docs/performance.md).
     #[command(subcommand)]
     Bench(bench::BenchCommand),
@@ -50,6 +53,7 @@ pub fn main() -> i32 {
         } => solve::run(&spec, points.as_deref(), field.as_deref()),
         Command::Convergence(a) => convergence::run(&a),
         Command::Bench(b) => bench::run(&b),
+        Command::Serve(a) => return serve::main(&a),
     };
     match result {
         Ok(v) => {

@@ -1,0 +1,439 @@
+//! The `/v1/brdfs` resource: submit a spec, watch its job, fetch its table.
+
+use super::AppState;
+use super::error::ApiError;
+use crate::jobs::{Problem, Submission};
+use crate::spec::{self, ScattererSpec, Spec, canonical};
+use crate::storage::{JobRow, Status, rfc3339};
+use axum::Json;
+use axum::body::Bytes;
+use axum::extract::rejection::{BytesRejection, FailedToBufferBody};
+use axum::extract::{Path, State};
+use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
+use axum::response::{IntoResponse, Response};
+use serde::Serialize;
+use utoipa::ToSchema;
+
+/// A material spec (docs/spec.md).
+#[derive(ToSchema)]
+#[schema(value_type = Object, example = json!({
+    "layers": [{"optical_thickness": 1.0, "scatterer": {"rayleigh": {"albedo": 1.0}}}],
+    "base": {"lambertian": {"albedo": 0.5}},
+    "solver": {"streams": 8}
+}))]
+pub struct SpecDocument(pub serde_json::Value);
+
+/// State of a job.
+#[derive(Clone, Copy, Debug, Serialize, ToSchema, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum JobStatus {
+    /// Waiting for a worker.
+    Queued,
+    /// Being solved.
+    Running,
+    /// Solved: the table is available.
+    Done,
+    /// The solve failed: see `error`.
+    Failed,
+}
+
+impl From<Status> for JobStatus {
+    fn from(s: Status) -> Self {
+        match s {
+            Status::Queued => JobStatus::Queued,
+            Status::Running => JobStatus::Running,
+            Status::Done => JobStatus::Done,
+            Status::Failed => JobStatus::Failed,
+        }
+    }
+}
+
+/// Related resources.
+#[derive(Clone, Debug, Serialize, ToSchema)]
+pub struct Links {
+    /// This resource.
+    #[serde(rename = "self")]
+    pub self_: String,
+    /// The result bytes (available when `status` is `done`).
+    pub table: String,
+}
+
+impl Links {
+    fn of(id: &str) -> Self {
+        Self {
+            self_: format!("/v1/brdfs/{id}"),
+            table: format!("/v1/brdfs/{id}/table"),
+        }
+    }
+}
+
+/// The stored result.
+#[derive(Clone, Debug, Serialize, ToSchema)]
+pub struct ResultInfo {
+    /// SHA-256 of the bytes (lowercase hex); the table's ETag.
+    pub digest: String,
+    /// Size in bytes.
+    pub size: i64,
+    /// Media type of the bytes.
+    pub media_type: String,
+}
+
+/// A BRDF job and, once done, its result.
+#[derive(Clone, Debug, Serialize, ToSchema)]
+pub struct BrdfResource {
+    /// Content address of the canonical spec (docs/service.md).
+    pub id: String,
+    /// Job state.
+    pub status: JobStatus,
+    /// Fraction of wavelengths solved, `[0, 1]`.
+    pub progress: f64,
+    /// The canonical spec (defaults filled in).
+    #[schema(value_type = Object)]
+    pub spec: serde_json::Value,
+    /// Largest estimated error of f11 relative to max f11 over the
+    /// wavelengths (`null` until the solver provides one).
+    pub error_estimate: Option<f64>,
+    /// Solver wall time per finished wavelength (ms).
+    pub wall_time_ms: Vec<f64>,
+    /// Number of wavelengths (solves) of the job.
+    pub wavelengths: i64,
+    /// The typed error of a failed job.
+    pub error: Option<Problem>,
+    /// The stored result of a done job.
+    pub result: Option<ResultInfo>,
+    /// RFC 3339.
+    pub created_at: String,
+    /// RFC 3339.
+    pub updated_at: String,
+    /// RFC 3339, when the job became done or failed.
+    pub finished_at: Option<String>,
+    /// Related resources.
+    pub links: Links,
+}
+
+impl BrdfResource {
+    fn of(row: &JobRow) -> Self {
+        let result = match (&row.digest, row.size, &row.media_type) {
+            (Some(d), Some(size), Some(m)) if row.status == Status::Done => Some(ResultInfo {
+                digest: d.clone(),
+                size,
+                media_type: m.clone(),
+            }),
+            _ => None,
+        };
+        Self {
+            id: row.id.clone(),
+            status: row.status.into(),
+            progress: row.progress,
+            spec: serde_json::from_str(&row.spec).unwrap_or(serde_json::Value::Null),
+            error_estimate: row.error_estimate,
+            wall_time_ms: row.wall_time_ms.clone(),
+            wavelengths: row.wavelengths,
+            error: row
+                .error
+                .as_deref()
+                .and_then(|e| serde_json::from_str(e).ok()),
+            result,
+            created_at: rfc3339(row.created_at),
+            updated_at: rfc3339(row.updated_at),
+            finished_at: row.finished_at.map(rfc3339),
+            links: Links::of(&row.id),
+        }
+    }
+}
+
+/// A submission that is being solved.
+#[derive(Clone, Debug, Serialize, ToSchema)]
+pub struct Accepted {
+    /// Spec id.
+    pub id: String,
+    /// `queued` or `running`.
+    pub status: JobStatus,
+    /// Related resources.
+    pub links: Links,
+}
+
+/// Check the service caps (`--max-streams`, `--max-layers`,
+/// `--max-wavelengths`, `--max-expansion-terms`) on a parsed spec.
+pub fn check_limits(spec: &Spec, limits: &super::config::Limits) -> Result<(), ApiError> {
+    let over = |path: String, message: String| ApiError::LimitExceeded { path, message };
+    if spec.layers.len() > limits.max_layers {
+        return Err(over(
+            "layers".into(),
+            format!(
+                "{} layers exceed this service's limit: allowed 1 to {} (--max-layers)",
+                spec.layers.len(),
+                limits.max_layers
+            ),
+        ));
+    }
+    if let Some(w) = &spec.wavelengths_nm
+        && w.len() > limits.max_wavelengths
+    {
+        return Err(over(
+            "wavelengths_nm".into(),
+            format!(
+                "{} wavelengths exceed this service's limit: allowed 1 to {} (--max-wavelengths)",
+                w.len(),
+                limits.max_wavelengths
+            ),
+        ));
+    }
+    if let Some(n) = spec.solver.streams
+        && n > limits.max_streams
+    {
+        return Err(over(
+            "solver.streams".into(),
+            format!(
+                "{n} is outside this service's allowed range [1, {}] (--max-streams)",
+                limits.max_streams
+            ),
+        ));
+    }
+    for (i, layer) in spec.layers.iter().enumerate() {
+        if let ScattererSpec::Expansion(e) = &layer.scatterer {
+            for (name, v) in [
+                ("beta", &e.beta),
+                ("alpha", &e.alpha),
+                ("zeta", &e.zeta),
+                ("delta", &e.delta),
+                ("gamma", &e.gamma),
+                ("epsilon", &e.epsilon),
+            ] {
+                if v.len() > limits.max_expansion_terms {
+                    return Err(over(
+                        format!("layers[{i}].scatterer.expansion.{name}"),
+                        format!(
+                            "{} terms exceed this service's limit: allowed at most {} (--max-expansion-terms)",
+                            v.len(),
+                            limits.max_expansion_terms
+                        ),
+                    ));
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+fn location(id: &str) -> HeaderValue {
+    HeaderValue::from_str(&format!("/v1/brdfs/{id}")).expect("ASCII id")
+}
+
+/// Submit a spec.
+///
+/// The spec is parsed, validated and reduced to its canonical form; its id
+/// is the SHA-256 of that form (docs/service.md). A known id is answered
+/// from the cache (200, the resource); otherwise a job is queued, or the
+/// submission joins the queued or running job of the same id (202).
+#[utoipa::path(
+    post,
+    path = "/v1/brdfs",
+    tag = "brdfs",
+    request_body(content = SpecDocument, content_type = "application/json"),
+    responses(
+        (status = 200, description = "Known spec: the resource (done or failed)", body = BrdfResource,
+         headers(("Content-Location" = String, description = "The resource"))),
+        (status = 202, description = "Queued or running", body = Accepted,
+         headers(("Location" = String, description = "The resource to poll"))),
+        (status = 401, description = "Missing or wrong bearer token", body = Problem, content_type = "application/problem+json"),
+        (status = 413, description = "Body over --max-body-bytes", body = Problem, content_type = "application/problem+json"),
+        (status = 415, description = "Content type is not JSON", body = Problem, content_type = "application/problem+json"),
+        (status = 422, description = "Invalid spec or over a service limit; `path` names the field", body = Problem, content_type = "application/problem+json"),
+        (status = 503, description = "Queue full or shutting down", body = Problem, content_type = "application/problem+json",
+         headers(("Retry-After" = u64, description = "Seconds"))),
+    ),
+    security((), ("bearer" = []))
+)]
+pub async fn create_brdf(
+    State(state): State<AppState>,
+    headers: HeaderMap,
+    body: Result<Bytes, BytesRejection>,
+) -> Result<Response, ApiError> {
+    if let Some(ct) = headers.get(header::CONTENT_TYPE) {
+        let ct = ct.to_str().unwrap_or("");
+        let essence = ct
+            .split(';')
+            .next()
+            .unwrap_or("")
+            .trim()
+            .to_ascii_lowercase();
+        if essence != "application/json" && !essence.ends_with("+json") {
+            return Err(ApiError::UnsupportedMediaType(ct.to_string()));
+        }
+    }
+    let body = body.map_err(|e| match e {
+        BytesRejection::FailedToBufferBody(FailedToBufferBody::LengthLimitError(_)) => {
+            ApiError::PayloadTooLarge {
+                limit: state.0.config.max_body_bytes,
+            }
+        }
+        other => ApiError::BadBody(other.body_text()),
+    })?;
+    let text = std::str::from_utf8(&body).map_err(|e| {
+        ApiError::InvalidSpec(spec::SpecError {
+            path: "$".into(),
+            message: format!("the body is not UTF-8: {e}"),
+        })
+    })?;
+    let spec = spec::parse(text).map_err(ApiError::InvalidSpec)?;
+    check_limits(&spec, &state.0.config.limits)?;
+    let (canonical_json, id) = canonical::id(&spec);
+    tracing::debug!(%id, "submission");
+    match state.0.jobs.submit(&spec, &canonical_json, &id).await? {
+        Submission::Cached(row) => {
+            let mut res = Json(BrdfResource::of(&row)).into_response();
+            res.headers_mut()
+                .insert(header::CONTENT_LOCATION, location(&row.id));
+            Ok(res)
+        }
+        Submission::Pending { id, status } => {
+            let body = Accepted {
+                links: Links::of(&id),
+                status: status.into(),
+                id,
+            };
+            let loc = location(&body.id);
+            let mut res = (StatusCode::ACCEPTED, Json(body)).into_response();
+            res.headers_mut().insert(header::LOCATION, loc);
+            Ok(res)
+        }
+    }
+}
+
+async fn row_of(state: &AppState, id: &str) -> Result<JobRow, ApiError> {
+    if !canonical::is_id(id) {
+        return Err(ApiError::NotFound(id.to_string()));
+    }
+    state
+        .0
+        .jobs
+        .index()
+        .get(id)
+        .await?
+        .ok_or_else(|| ApiError::NotFound(id.to_string()))
+}
+
+/// A BRDF job: state, progress, canonical spec, timings, error estimate,
+/// the typed error of a failed job, and the result digest once done.
+#[utoipa::path(
+    get,
+    path = "/v1/brdfs/{id}",
+    tag = "brdfs",
+    params(("id" = String, Path, description = "Spec id (64 lowercase hex digits)")),
+    responses(
+        (status = 200, description = "The resource", body = BrdfResource),
+        (status = 401, description = "Token required for reads (--token-reads)", body = Problem, content_type = "application/problem+json"),
+        (status = 404, description = "Unknown id", body = Problem, content_type = "application/problem+json"),
+    ),
+    security((), ("bearer" = []))
+)]
+pub async fn get_brdf(
+    State(state): State<AppState>,
+    Path(id): Path<String>,
+) -> Result<Response, ApiError> {
+    let row = row_of(&state, &id).await?;
+    let mut res = Json(BrdfResource::of(&row)).into_response();
+    res.headers_mut()
+        .insert(header::CACHE_CONTROL, HeaderValue::from_static("no-cache"));
+    Ok(res)
+}
+
+fn etag_of(digest: &str) -> HeaderValue {
+    HeaderValue::from_str(&format!("\"{digest}\"")).expect("hex digest")
+}
+
+/// Does an `If-None-Match` header match this digest (weak comparison)?
+fn none_match(headers: &HeaderMap, digest: &str) -> bool {
+    headers
+        .get_all(header::IF_NONE_MATCH)
+        .iter()
+        .filter_map(|v| v.to_str().ok())
+        .flat_map(|v| v.split(','))
+        .map(|t| t.trim().trim_start_matches("W/").trim_matches('"'))
+        .any(|t| t == "*" || t == digest)
+}
+
+/// Immutable results: cacheable by any HTTP cache for a year.
+pub const IMMUTABLE: &str = "public, max-age=31536000, immutable";
+
+/// The result bytes of a done job.
+///
+/// The ETag is the SHA-256 of the bytes; results never change, so they are
+/// served `immutable` and `If-None-Match` gives 304. HEAD is supported. The
+/// stored bytes are verified against their digest on every read: a missing
+/// or corrupt blob is never served; the job is queued again (409 until it is
+/// done).
+#[utoipa::path(
+    get,
+    path = "/v1/brdfs/{id}/table",
+    tag = "brdfs",
+    params(
+        ("id" = String, Path, description = "Spec id"),
+        ("If-None-Match" = Option<String>, Header, description = "ETag(s) the client holds"),
+    ),
+    responses(
+        (status = 200, description = "The result bytes (media type in Content-Type: application/vnd.polbrdf.fourier+json)",
+         headers(("ETag" = String, description = "\"<sha256 of the bytes>\""),
+                 ("Cache-Control" = String, description = "public, max-age=31536000, immutable"))),
+        (status = 304, description = "The client's copy is current",
+         headers(("ETag" = String), ("Cache-Control" = String))),
+        (status = 401, description = "Token required for reads (--token-reads)", body = Problem, content_type = "application/problem+json"),
+        (status = 404, description = "Unknown id", body = Problem, content_type = "application/problem+json"),
+        (status = 409, description = "Not done yet (queued, running, or being solved again), or failed", body = Problem, content_type = "application/problem+json",
+         headers(("Retry-After" = u64, description = "Seconds (not ready)"))),
+    ),
+    security((), ("bearer" = []))
+)]
+pub async fn get_table(
+    State(state): State<AppState>,
+    Path(id): Path<String>,
+    headers: HeaderMap,
+) -> Result<Response, ApiError> {
+    let row = row_of(&state, &id).await?;
+    match row.status {
+        Status::Queued | Status::Running => {
+            return Err(ApiError::NotReady {
+                id,
+                status: row.status.as_str(),
+            });
+        }
+        Status::Failed => {
+            let problem = row
+                .error
+                .as_deref()
+                .and_then(|e| serde_json::from_str(e).ok())
+                .unwrap_or_else(|| Problem::new("job-failed", "BRDF job failed", 409, "unknown"));
+            return Err(ApiError::JobFailed {
+                id,
+                problem: Box::new(problem),
+            });
+        }
+        Status::Done => {}
+    }
+    let digest = row.digest.clone().unwrap_or_default();
+    if none_match(&headers, &digest) {
+        let mut res = StatusCode::NOT_MODIFIED.into_response();
+        let h = res.headers_mut();
+        h.insert(header::ETAG, etag_of(&digest));
+        h.insert(header::CACHE_CONTROL, HeaderValue::from_static(IMMUTABLE));
+        return Ok(res);
+    }
+    let Some(bytes) = state.0.jobs.result_bytes(&row).await? else {
+        return Err(ApiError::NotReady {
+            id,
+            status: "being solved again (the stored result was missing or corrupt)",
+        });
+    };
+    let media = row
+        .media_type
+        .as_deref()
+        .and_then(|m| HeaderValue::from_str(m).ok())
+        .unwrap_or(HeaderValue::from_static("application/octet-stream"));
+    let mut res = bytes.into_response();
+    let h = res.headers_mut();
+    h.insert(header::CONTENT_TYPE, media);
+    h.insert(header::ETAG, etag_of(&digest));
+    h.insert(header::CACHE_CONTROL, HeaderValue::from_static(IMMUTABLE));
+    Ok(res)
+}

@@ -1,0 +1,236 @@
+//! The HTTP front door (`polbrdf serve`, docs/service.md).
+//!
+//! * [`routes`] is the one function that lists every route; the axum
+//!   [`router`] and the OpenAPI document ([`openapi`], committed at
+//!   `api/openapi.json` and snapshot-tested) are both built from it.
+//! * Handlers share [`AppState`]`(Arc<`[`App`]`>)`: the configuration, the
+//!   job queue and the metrics.
+//! * Every error is an [`error::ApiError`], mapped in one place to a status
+//!   and an RFC 9457 problem+json body.
+//! * [`serve`] opens the storage, starts the workers, binds, and shuts down
+//!   gracefully when its `shutdown` future resolves.
+
+pub mod brdfs;
+pub mod config;
+pub mod error;
+pub mod ops;
+
+pub use config::{Config, Limits, LogFormat};
+pub use error::ApiError;
+
+use crate::jobs::{Jobs, JobsConfig, Metrics};
+use crate::storage::{BlobStore, Index, StorageError};
+use axum::Router;
+use axum::extract::{DefaultBodyLimit, MatchedPath, Request, State};
+use axum::http::{Method, header};
+use axum::middleware::{self, Next};
+use axum::response::{IntoResponse, Response};
+use std::net::SocketAddr;
+use std::sync::Arc;
+use std::time::Instant;
+use utoipa::OpenApi;
+use utoipa::openapi::security::{Http, HttpAuthScheme, SecurityScheme};
+use utoipa_axum::router::OpenApiRouter;
+use utoipa_axum::routes as api;
+
+/// Everything the handlers share.
+#[derive(Debug)]
+pub struct App {
+    /// The configuration.
+    pub config: Config,
+    /// The job queue (with the index, the blobs and the metrics).
+    pub jobs: Arc<Jobs>,
+}
+
+/// Handler state: a cheap clone of the shared [`App`].
+#[derive(Clone, Debug)]
+pub struct AppState(pub Arc<App>);
+
+#[derive(OpenApi)]
+#[openapi(
+    info(
+        title = "polbrdf",
+        description = "Polarized (4x4 Mueller) BRDFs of paint layers from first principles, \
+                       computed once per canonical spec and served as immutable, content-addressed \
+                       results (docs/service.md).",
+        license(name = "MIT OR Apache-2.0")
+    ),
+    modifiers(&BearerAuth),
+    components(schemas(crate::jobs::Problem)),
+    tags(
+        (name = "brdfs", description = "Submit specs, follow jobs, fetch results"),
+        (name = "operations", description = "Health, readiness, metrics")
+    )
+)]
+struct ApiDoc;
+
+struct BearerAuth;
+
+impl utoipa::Modify for BearerAuth {
+    fn modify(&self, openapi: &mut utoipa::openapi::OpenApi) {
+        let components = openapi.components.get_or_insert_with(Default::default);
+        components.add_security_scheme(
+            "bearer",
+            SecurityScheme::Http(Http::new(HttpAuthScheme::Bearer)),
+        );
+    }
+}
+
+/// Every route of the service, with its OpenAPI description.
+pub fn routes() -> OpenApiRouter<AppState> {
+    OpenApiRouter::with_openapi(ApiDoc::openapi())
+        .routes(api!(brdfs::create_brdf))
+        .routes(api!(brdfs::get_brdf))
+        .routes(api!(brdfs::get_table))
+        .routes(api!(ops::healthz))
+        .routes(api!(ops::readyz))
+        .routes(api!(ops::metrics))
+}
+
+/// The OpenAPI document (the content of `api/openapi.json`).
+pub fn openapi() -> utoipa::openapi::OpenApi {
+    let (_, mut doc) = routes().split_for_parts();
+    doc.info.version = "v1".into();
+    doc
+}
+
+/// The axum router with its middleware: request spans, bearer-token
+/// checks, request metrics, the body cap, problem+json for unknown routes.
+pub fn router(state: AppState) -> Router {
+    let (router, _) = routes().split_for_parts();
+    router
+        .route_layer(middleware::from_fn_with_state(state.clone(), authorize))
+        .route_layer(middleware::from_fn_with_state(state.clone(), track))
+        .fallback(no_route)
+        .layer(DefaultBodyLimit::max(state.0.config.max_body_bytes))
+        .layer(
+            tower_http::trace::TraceLayer::new_for_http().make_span_with(|req: &Request| {
+                tracing::info_span!("request", method = %req.method(), path = %req.uri().path())
+            }),
+        )
+        .with_state(state)
+}
+
+async fn no_route(req: Request) -> ApiError {
+    ApiError::NoRoute(format!("{} {}", req.method(), req.uri().path()))
+}
+
+/// Count the request and its latency under its route template.
+async fn track(State(state): State<AppState>, req: Request, next: Next) -> Response {
+    let route = req
+        .extensions()
+        .get::<MatchedPath>()
+        .map_or_else(|| "unmatched".to_string(), |p| p.as_str().to_string());
+    let method = req.method().clone();
+    let t0 = Instant::now();
+    let res = next.run(req).await;
+    state.0.jobs.metrics().observe_request(
+        method.as_str(),
+        &route,
+        res.status().as_u16(),
+        t0.elapsed().as_secs_f64(),
+    );
+    res
+}
+
+/// Bearer-token check: submissions need `--token` when it is set; reads
+/// (results, metrics) need it too with `--token-reads`; `/healthz` and
+/// `/readyz` are always open.
+async fn authorize(State(state): State<AppState>, req: Request, next: Next) -> Response {
+    let config = &state.0.config;
+    let Some(token) = config.token.as_deref() else {
+        return next.run(req).await;
+    };
+    let path = req.uri().path();
+    let open = path == "/healthz" || path == "/readyz";
+    let write = !matches!(*req.method(), Method::GET | Method::HEAD);
+    if open || !(write || config.token_reads) {
+        return next.run(req).await;
+    }
+    let given = req
+        .headers()
+        .get(header::AUTHORIZATION)
+        .and_then(|v| v.to_str().ok())
+        .and_then(|v| v.strip_prefix("Bearer "))
+        .map(str::trim);
+    match given {
+        Some(g) if constant_time_eq(g.as_bytes(), token.as_bytes()) => next.run(req).await,
+        _ => ApiError::Unauthorized.into_response(),
+    }
+}
+
+fn constant_time_eq(a: &[u8], b: &[u8]) -> bool {
+    a.len() == b.len() && a.iter().zip(b).fold(0u8, |acc, (x, y)| acc | (x ^ y)) == 0
+}
+
+/// Start-up and serving errors.
+#[derive(Debug, thiserror::Error)]
+pub enum ServeError {
+    /// The data directory or the index could not be opened.
+    #[error("{0}")]
+    Storage(#[from] StorageError),
+    /// The listen address could not be bound.
+    #[error("cannot listen on {addr}: {source}")]
+    Bind {
+        /// The address.
+        addr: SocketAddr,
+        /// The OS error.
+        source: std::io::Error,
+    },
+    /// The server failed.
+    #[error("server: {0}")]
+    Io(#[from] std::io::Error),
+}
+
+/// Open the storage, start the workers (re-queuing unfinished jobs), bind
+/// `config.listen` and serve until `shutdown` resolves; then stop accepting,
+/// let running jobs finish within `config.shutdown_grace` (re-queuing the
+/// rest) and close the index. `on_bound` receives the bound address.
+pub async fn serve(
+    config: Config,
+    on_bound: impl FnOnce(SocketAddr),
+    shutdown: impl Future<Output = ()> + Send + 'static,
+) -> Result<(), ServeError> {
+    std::fs::create_dir_all(&config.data_dir)?;
+    let index = Index::open(&config.database_url).await?;
+    let blobs = Arc::new(BlobStore::open(config.data_dir.join("blobs"))?);
+    let jobs = Jobs::start(
+        index.clone(),
+        blobs,
+        Arc::new(Metrics::default()),
+        JobsConfig {
+            workers: config.workers,
+            max_queue: config.max_queue,
+            max_attempts: config.max_attempts,
+            max_streams: config.limits.max_streams,
+        },
+    )
+    .await?;
+    let listener = tokio::net::TcpListener::bind(config.listen)
+        .await
+        .map_err(|source| ServeError::Bind {
+            addr: config.listen,
+            source,
+        })?;
+    let addr = listener.local_addr()?;
+    let grace = config.shutdown_grace;
+    tracing::info!(%addr, data_dir = %config.data_dir.display(), workers = config.workers, "serving");
+    on_bound(addr);
+    let state = AppState(Arc::new(App {
+        config,
+        jobs: jobs.clone(),
+    }));
+    let stopping = jobs.clone();
+    axum::serve(listener, router(state))
+        .with_graceful_shutdown(async move {
+            shutdown.await;
+            tracing::info!("shutting down: no new connections");
+            // Readiness turns 503 and submissions are refused from here.
+            stopping.stop_accepting();
+        })
+        .await?;
+    jobs.shutdown(grace).await;
+    index.close().await;
+    tracing::info!("stopped");
+    Ok(())
+}

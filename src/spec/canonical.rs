@@ -1,0 +1,299 @@
+//! Canonical form and content address of a parsed spec (docs/service.md,
+//! "Canonical form and id").
+//!
+//! Two specs that mean the same computation get the same bytes, hence the
+//! same id, so the service solves each material once:
+//!
+//! 1. defaults are filled in (`base`, `solver.polarized`, `solver.streams`
+//!    unless a `tolerance` chooses it, `host_index`, `depolarization`, the
+//!    Fresnel `ambient_index`; a `tolerance` next to explicit `streams` is
+//!    ignored by the solver and dropped), built-in material names
+//!    are replaced by their canonical name (`"titania"` → `"TiO2"`), trailing
+//!    zeros of expansion series are dropped (missing entries are 0) and `-0`
+//!    is written `0`;
+//! 2. the JSON text has its object keys sorted (byte order), no whitespace,
+//!    and every number in serde_json's shortest round-trip form (`1.0`,
+//!    `1e-6`, `0.973527`; integers such as `streams` without a fraction);
+//! 3. the id is the lowercase hex SHA-256 of
+//!    `"polbrdf-spec/" + SCHEMA_VERSION + "\n" + "polbrdf-solver/" + SOLVER_VERSION + "\n" + canonical_json`.
+//!
+//! Mixing both versions into the hash (as sccache does) retires every cached
+//! result at once when the meaning of a spec or the solver's output changes:
+//! bump [`SCHEMA_VERSION`] when a field's meaning or default changes, and
+//! [`SOLVER_VERSION`] when results change beyond round-off.
+
+use super::{BaseSpec, ExpansionSpec, MaterialSpec, ScattererSpec, Spec};
+use crate::physics::materials;
+use serde_json::Value;
+use sha2::{Digest, Sha256};
+
+/// Version of the spec schema mixed into every id.
+pub const SCHEMA_VERSION: &str = "1";
+
+/// Version of the solver's results mixed into every id.
+pub const SOLVER_VERSION: &str = "1";
+
+/// The spec with the defaults of its own fields filled in and equivalent
+/// spellings unified (step 1 of the module documentation, except the solver
+/// defaults, which [`canonical_value`] makes explicit).
+pub fn normalized(spec: &Spec) -> Spec {
+    let mut s = spec.clone();
+    for layer in &mut s.layers {
+        if let super::ThicknessSpec::Number(t) = &mut layer.optical_thickness {
+            *t = unsigned_zero(*t);
+        }
+        match &mut layer.scatterer {
+            ScattererSpec::Mie(m) => canonical_material(&mut m.material),
+            ScattererSpec::Expansion(e) => trim_expansion(e),
+            ScattererSpec::Rayleigh { .. } | ScattererSpec::HenyeyGreenstein { .. } => {}
+        }
+    }
+    let last_host = match s.layers.last().map(|l| &l.scatterer) {
+        Some(ScattererSpec::Mie(m)) => m.host_index,
+        _ => 1.0,
+    };
+    if let BaseSpec::Fresnel {
+        material,
+        ambient_index,
+    } = &mut s.base
+    {
+        canonical_material(material);
+        ambient_index.get_or_insert(last_host);
+    }
+    s
+}
+
+fn unsigned_zero(x: f64) -> f64 {
+    if x == 0.0 { 0.0 } else { x }
+}
+
+fn canonical_material(m: &mut MaterialSpec) {
+    if let MaterialSpec::Name(name) = m
+        && let Ok(found) = materials::find(name)
+    {
+        *name = found.name.to_string();
+    }
+}
+
+fn trim_expansion(e: &mut ExpansionSpec) {
+    while e.beta.len() > 1 && e.beta.last() == Some(&0.0) {
+        e.beta.pop();
+    }
+    for v in [
+        &mut e.alpha,
+        &mut e.zeta,
+        &mut e.delta,
+        &mut e.gamma,
+        &mut e.epsilon,
+    ] {
+        while v.last() == Some(&0.0) {
+            v.pop();
+        }
+    }
+}
+
+/// The JSON value of the canonical form: [`normalized`], then the solver
+/// defaults made explicit. `streams` is written whenever it decides the
+/// computation: an explicit `streams` wins over a `tolerance` (which is then
+/// dropped), and with neither the default stream count is written.
+pub fn canonical_value(spec: &Spec) -> Value {
+    let mut v = serde_json::to_value(normalized(spec)).expect("a spec serializes to JSON");
+    if let Some(solver) = v.get_mut("solver").and_then(Value::as_object_mut) {
+        let streams = solver.get("streams").is_some_and(|s| !s.is_null());
+        let tolerance = solver.get("tolerance").is_some_and(|t| !t.is_null());
+        if streams {
+            solver.remove("tolerance");
+        } else if !tolerance {
+            solver.insert("streams".into(), Value::from(default_streams()));
+        }
+        solver.retain(|_, x| !x.is_null());
+    }
+    v
+}
+
+/// The stream count the solver uses when the spec gives neither `streams`
+/// nor `tolerance`, as [`super::problem`] resolves it.
+fn default_streams() -> usize {
+    static STREAMS: std::sync::OnceLock<usize> = std::sync::OnceLock::new();
+    *STREAMS.get_or_init(|| {
+        let probe = super::parse(
+            r#"{"layers":[{"optical_thickness":1,"scatterer":{"rayleigh":{"albedo":1}}}]}"#,
+        )
+        .expect("probe spec");
+        super::problem(&probe, None)
+            .expect("probe problem")
+            .settings
+            .streams
+    })
+}
+
+/// Canonical JSON text of a spec (steps 1 and 2 of the module
+/// documentation).
+pub fn canonical_json(spec: &Spec) -> String {
+    let mut out = String::new();
+    write_canonical(&canonical_value(spec), &mut out);
+    out
+}
+
+/// Write a JSON value with sorted keys, no whitespace and numbers in
+/// serde_json's shortest round-trip form; `-0` becomes `0`.
+pub fn write_canonical(v: &Value, out: &mut String) {
+    match v {
+        Value::Null | Value::Bool(_) | Value::String(_) => {
+            out.push_str(&serde_json::to_string(v).expect("JSON scalar"))
+        }
+        Value::Number(n) => match n.as_f64() {
+            Some(x) if n.is_f64() => {
+                out.push_str(&serde_json::to_string(&unsigned_zero(x)).expect("finite number"))
+            }
+            _ => out.push_str(&n.to_string()),
+        },
+        Value::Array(a) => {
+            out.push('[');
+            for (i, x) in a.iter().enumerate() {
+                if i > 0 {
+                    out.push(',');
+                }
+                write_canonical(x, out);
+            }
+            out.push(']');
+        }
+        Value::Object(o) => {
+            let mut keys: Vec<&String> = o.keys().collect();
+            keys.sort();
+            out.push('{');
+            for (i, k) in keys.into_iter().enumerate() {
+                if i > 0 {
+                    out.push(',');
+                }
+                out.push_str(&serde_json::to_string(k).expect("JSON key"));
+                out.push(':');
+                write_canonical(&o[k], out);
+            }
+            out.push('}');
+        }
+    }
+}
+
+/// The bytes that are hashed into an id: the two version lines and the
+/// canonical JSON (step 3 of the module documentation).
+pub fn id_preimage(canonical_json: &str) -> String {
+    format!("polbrdf-spec/{SCHEMA_VERSION}\npolbrdf-solver/{SOLVER_VERSION}\n{canonical_json}")
+}
+
+/// Lowercase hex of a byte string.
+pub fn hex(bytes: &[u8]) -> String {
+    const DIGITS: &[u8; 16] = b"0123456789abcdef";
+    let mut s = String::with_capacity(bytes.len() * 2);
+    for b in bytes {
+        s.push(DIGITS[(b >> 4) as usize] as char);
+        s.push(DIGITS[(b & 15) as usize] as char);
+    }
+    s
+}
+
+/// Lowercase hex SHA-256 of a byte string.
+pub fn sha256_hex(bytes: &[u8]) -> String {
+    hex(&Sha256::digest(bytes))
+}
+
+/// The id of a canonical JSON text.
+pub fn id_of_canonical(canonical_json: &str) -> String {
+    sha256_hex(id_preimage(canonical_json).as_bytes())
+}
+
+/// The content address of a spec: its canonical JSON and its id.
+pub fn id(spec: &Spec) -> (String, String) {
+    let c = canonical_json(spec);
+    let id = id_of_canonical(&c);
+    (c, id)
+}
+
+/// True for a well-formed id (64 lowercase hex digits).
+pub fn is_id(s: &str) -> bool {
+    s.len() == 64 && s.bytes().all(|b| matches!(b, b'0'..=b'9' | b'a'..=b'f'))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::spec::parse;
+
+    #[test]
+    fn defaults_order_and_spelling_do_not_change_the_id() {
+        let a =
+            parse(r#"{"layers":[{"optical_thickness":1,"scatterer":{"rayleigh":{"albedo":1}}}]}"#)
+                .unwrap();
+        let b = parse(
+            r#"{ "solver": {"polarized": true, "streams": 16}, "base": "black",
+                 "layers": [ {"scatterer": {"rayleigh": {"depolarization": 0.0, "albedo": 1.0}},
+                              "optical_thickness": 1.0} ] }"#,
+        )
+        .unwrap();
+        assert_eq!(canonical_json(&a), canonical_json(&b));
+        assert_eq!(id(&a).1, id(&b).1);
+        assert_eq!(
+            canonical_json(&a),
+            r#"{"base":"black","layers":[{"optical_thickness":1.0,"scatterer":{"rayleigh":{"albedo":1.0,"depolarization":0.0}}}],"solver":{"polarized":true,"streams":16}}"#
+        );
+    }
+
+    #[test]
+    fn aliases_trailing_zeros_and_ambient_default() {
+        let a = parse(
+            r#"{"layers":[{"optical_thickness":-0.0,"scatterer":{"expansion":{"albedo":0.9,"beta":[1,0.5,0,0],"gamma":[0,0]}}}],
+                "base":{"fresnel":{"material":"Ag"}},"wavelengths_nm":[550]}"#,
+        )
+        .unwrap();
+        let b = parse(
+            r#"{"layers":[{"optical_thickness":0,"scatterer":{"expansion":{"albedo":0.9,"beta":[1,0.5]}}}],
+                "base":{"fresnel":{"material":"silver","ambient_index":1}},"wavelengths_nm":[550.0]}"#,
+        )
+        .unwrap();
+        assert_eq!(canonical_json(&a), canonical_json(&b));
+        assert!(canonical_json(&a).contains(r#""material":"silver""#));
+    }
+
+    #[test]
+    fn canonical_form_parses_back_to_itself() {
+        for text in [
+            r#"{"layers":[{"optical_thickness":1,"scatterer":{"mie":{"material":"titania","radius_um":0.2}}},
+                          {"optical_thickness":"infinite","scatterer":{"henyey_greenstein":{"albedo":0.9,"g":0.7}}}],
+                "base":{"lambertian":{"albedo":0.5}},"wavelengths_nm":[450,550.5],"solver":{"streams":8,"polarized":false}}"#,
+            r#"{"layers":[{"optical_thickness":2e-7,"scatterer":{"mie":{"material":{"n":1.5,"k":0.001},
+                 "size_distribution":{"lognormal":{"r_g_um":0.1,"sigma_g":1.5}},"host_index":1.5}}}],
+                "base":{"fresnel":{"material":{"n":0.2,"k":3}}},"wavelengths_nm":[1e3]}"#,
+        ] {
+            let s = parse(text).unwrap();
+            let c = canonical_json(&s);
+            let back = parse(&c).unwrap();
+            assert_eq!(canonical_json(&back), c, "idempotent");
+        }
+    }
+
+    #[test]
+    fn explicit_streams_win_over_a_tolerance() {
+        // Only where the schema has `solver.tolerance`.
+        let both = r#"{"layers":[{"optical_thickness":1,"scatterer":{"rayleigh":{"albedo":1}}}],"solver":{"streams":8,"tolerance":1e-3}}"#;
+        if let Ok(s) = parse(both) {
+            let only = parse(r#"{"layers":[{"optical_thickness":1,"scatterer":{"rayleigh":{"albedo":1}}}],"solver":{"streams":8}}"#).unwrap();
+            assert_eq!(canonical_json(&s), canonical_json(&only));
+            let tol = parse(r#"{"layers":[{"optical_thickness":1,"scatterer":{"rayleigh":{"albedo":1}}}],"solver":{"tolerance":1e-3}}"#).unwrap();
+            assert!(canonical_json(&tol).contains(r#""tolerance":0.001"#));
+            assert!(!canonical_json(&tol).contains("streams"));
+        }
+    }
+
+    #[test]
+    fn different_physics_different_id() {
+        let a =
+            parse(r#"{"layers":[{"optical_thickness":1,"scatterer":{"rayleigh":{"albedo":1}}}]}"#)
+                .unwrap();
+        let b = parse(
+            r#"{"layers":[{"optical_thickness":1.0000000000000002,"scatterer":{"rayleigh":{"albedo":1}}}]}"#,
+        )
+        .unwrap();
+        assert_ne!(id(&a).1, id(&b).1);
+        assert!(is_id(&id(&a).1));
+    }
+}

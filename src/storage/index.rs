@@ -1,0 +1,314 @@
+//! The job/result index: one row per spec id in SQLite (migrations/, run at
+//! start by [`Index::open`]). Short statements only; every state change is a
+//! single `UPDATE`, so a crash leaves each row in a state the start-up scan
+//! understands (queued/running rows are solved again).
+//!
+//! SQLite is the single-node store: it must not live on a network
+//! filesystem. Several nodes would share PostgreSQL (claiming rows with
+//! `FOR UPDATE SKIP LOCKED` and leases) behind the same methods.
+
+use super::StorageError;
+use sqlx::sqlite::{SqliteConnectOptions, SqliteJournalMode, SqlitePoolOptions, SqliteSynchronous};
+use sqlx::{Row, SqlitePool};
+use std::str::FromStr;
+use std::time::Duration;
+
+/// State of a row.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Status {
+    /// Waiting for a worker.
+    Queued,
+    /// Being solved.
+    Running,
+    /// Solved; the result blob is `digest`.
+    Done,
+    /// The solve failed; `error` holds the problem.
+    Failed,
+}
+
+impl Status {
+    /// The database / API spelling.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Status::Queued => "queued",
+            Status::Running => "running",
+            Status::Done => "done",
+            Status::Failed => "failed",
+        }
+    }
+
+    /// All states, in lifecycle order.
+    pub const ALL: [Status; 4] = [
+        Status::Queued,
+        Status::Running,
+        Status::Done,
+        Status::Failed,
+    ];
+}
+
+impl FromStr for Status {
+    type Err = StorageError;
+    fn from_str(s: &str) -> Result<Self, StorageError> {
+        Status::ALL
+            .into_iter()
+            .find(|x| x.as_str() == s)
+            .ok_or_else(|| StorageError::Corrupt(format!("unknown status '{s}'")))
+    }
+}
+
+/// One row of `jobs`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct JobRow {
+    /// Spec id.
+    pub id: String,
+    /// State.
+    pub status: Status,
+    /// Canonical JSON of the spec.
+    pub spec: String,
+    /// Number of wavelengths (solves).
+    pub wavelengths: i64,
+    /// Fraction of wavelengths done.
+    pub progress: f64,
+    /// Wall time per finished wavelength (ms).
+    pub wall_time_ms: Vec<f64>,
+    /// Error estimate of the result, when the solver provides one.
+    pub error_estimate: Option<f64>,
+    /// JSON problem object of a failed job.
+    pub error: Option<String>,
+    /// SHA-256 of the result blob.
+    pub digest: Option<String>,
+    /// Size of the result blob (bytes).
+    pub size: Option<i64>,
+    /// Media type of the result blob.
+    pub media_type: Option<String>,
+    /// Solves started.
+    pub attempts: i64,
+    /// Creation time (ms since the epoch).
+    pub created_at: i64,
+    /// Last change (ms since the epoch).
+    pub updated_at: i64,
+    /// When it became done or failed (ms since the epoch).
+    pub finished_at: Option<i64>,
+}
+
+/// The SQLite index.
+#[derive(Clone, Debug)]
+pub struct Index {
+    pool: SqlitePool,
+}
+
+const COLUMNS: &str = "id, status, spec, wavelengths, progress, wall_time_ms, error_estimate, \
+     error, digest, size, media_type, attempts, created_at, updated_at, finished_at";
+
+impl Index {
+    /// Connect (creating the database file if needed), switch to WAL and run
+    /// the embedded migrations.
+    pub async fn open(database_url: &str) -> Result<Self, StorageError> {
+        let options = SqliteConnectOptions::from_str(database_url)?
+            .create_if_missing(true)
+            .journal_mode(SqliteJournalMode::Wal)
+            .synchronous(SqliteSynchronous::Normal)
+            .busy_timeout(Duration::from_secs(10))
+            .foreign_keys(true);
+        let pool = SqlitePoolOptions::new()
+            .max_connections(4)
+            .connect_with(options)
+            .await?;
+        sqlx::migrate!().run(&pool).await?;
+        Ok(Self { pool })
+    }
+
+    /// Close the pool (checkpoints the WAL).
+    pub async fn close(&self) {
+        self.pool.close().await;
+    }
+
+    /// Is the database answering?
+    pub async fn ping(&self) -> Result<(), StorageError> {
+        sqlx::query("SELECT 1").execute(&self.pool).await?;
+        Ok(())
+    }
+
+    /// The row of an id.
+    pub async fn get(&self, id: &str) -> Result<Option<JobRow>, StorageError> {
+        let sql = format!("SELECT {COLUMNS} FROM jobs WHERE id = ?");
+        let row = sqlx::query(sqlx::AssertSqlSafe(sql))
+            .bind(id)
+            .fetch_optional(&self.pool)
+            .await?;
+        row.map(|r| to_row(&r)).transpose()
+    }
+
+    /// Queued and running rows, oldest first (the start-up scan).
+    pub async fn unfinished(&self) -> Result<Vec<JobRow>, StorageError> {
+        let sql = format!(
+            "SELECT {COLUMNS} FROM jobs WHERE status IN ('queued', 'running') ORDER BY created_at, id"
+        );
+        let rows = sqlx::query(sqlx::AssertSqlSafe(sql))
+            .fetch_all(&self.pool)
+            .await?;
+        rows.iter().map(to_row).collect()
+    }
+
+    /// Insert a queued row, or reset an existing row to queued (a result
+    /// whose blob went missing, a retried failure). Keeps `created_at` and
+    /// `attempts`.
+    pub async fn enqueue(
+        &self,
+        id: &str,
+        spec: &str,
+        wavelengths: i64,
+        now: i64,
+    ) -> Result<(), StorageError> {
+        sqlx::query(
+            "INSERT INTO jobs (id, status, spec, wavelengths, created_at, updated_at)
+             VALUES (?1, 'queued', ?2, ?3, ?4, ?4)
+             ON CONFLICT (id) DO UPDATE SET
+               status = 'queued', progress = 0, wall_time_ms = '[]', error_estimate = NULL,
+               error = NULL, digest = NULL, size = NULL, media_type = NULL,
+               updated_at = ?4, finished_at = NULL",
+        )
+        .bind(id)
+        .bind(spec)
+        .bind(wavelengths)
+        .bind(now)
+        .execute(&self.pool)
+        .await?;
+        Ok(())
+    }
+
+    /// Back to queued without touching anything else (shutdown, restart).
+    pub async fn requeue(&self, id: &str, now: i64) -> Result<(), StorageError> {
+        sqlx::query(
+            "UPDATE jobs SET status = 'queued', updated_at = ?2
+             WHERE id = ?1 AND status IN ('queued', 'running')",
+        )
+        .bind(id)
+        .bind(now)
+        .execute(&self.pool)
+        .await?;
+        Ok(())
+    }
+
+    /// A worker took the job.
+    pub async fn start(&self, id: &str, now: i64) -> Result<(), StorageError> {
+        sqlx::query(
+            "UPDATE jobs SET status = 'running', attempts = attempts + 1, progress = 0,
+               wall_time_ms = '[]', updated_at = ?2
+             WHERE id = ?1",
+        )
+        .bind(id)
+        .bind(now)
+        .execute(&self.pool)
+        .await?;
+        Ok(())
+    }
+
+    /// A wavelength finished.
+    pub async fn progress(
+        &self,
+        id: &str,
+        progress: f64,
+        wall_time_ms: &[f64],
+        now: i64,
+    ) -> Result<(), StorageError> {
+        sqlx::query(
+            "UPDATE jobs SET progress = ?2, wall_time_ms = ?3, updated_at = ?4
+             WHERE id = ?1 AND status = 'running'",
+        )
+        .bind(id)
+        .bind(progress)
+        .bind(json_array(wall_time_ms))
+        .bind(now)
+        .execute(&self.pool)
+        .await?;
+        Ok(())
+    }
+
+    /// The result blob is stored: the row is a cached result from now on.
+    #[allow(clippy::too_many_arguments)]
+    pub async fn finish(
+        &self,
+        id: &str,
+        digest: &str,
+        size: i64,
+        media_type: &str,
+        wall_time_ms: &[f64],
+        error_estimate: Option<f64>,
+        now: i64,
+    ) -> Result<(), StorageError> {
+        sqlx::query(
+            "UPDATE jobs SET status = 'done', progress = 1, digest = ?2, size = ?3,
+               media_type = ?4, wall_time_ms = ?5, error_estimate = ?6, error = NULL,
+               updated_at = ?7, finished_at = ?7
+             WHERE id = ?1",
+        )
+        .bind(id)
+        .bind(digest)
+        .bind(size)
+        .bind(media_type)
+        .bind(json_array(wall_time_ms))
+        .bind(error_estimate)
+        .bind(now)
+        .execute(&self.pool)
+        .await?;
+        Ok(())
+    }
+
+    /// The solve failed with this JSON problem.
+    pub async fn fail(&self, id: &str, error_json: &str, now: i64) -> Result<(), StorageError> {
+        sqlx::query(
+            "UPDATE jobs SET status = 'failed', error = ?2, digest = NULL, size = NULL,
+               media_type = NULL, updated_at = ?3, finished_at = ?3
+             WHERE id = ?1",
+        )
+        .bind(id)
+        .bind(error_json)
+        .bind(now)
+        .execute(&self.pool)
+        .await?;
+        Ok(())
+    }
+
+    /// Number of rows per state (all states, zeros included).
+    pub async fn counts(&self) -> Result<Vec<(Status, i64)>, StorageError> {
+        let rows = sqlx::query("SELECT status, COUNT(*) AS n FROM jobs GROUP BY status")
+            .fetch_all(&self.pool)
+            .await?;
+        let mut out: Vec<(Status, i64)> = Status::ALL.iter().map(|&s| (s, 0)).collect();
+        for r in rows {
+            let s: Status = r.try_get::<String, _>("status")?.parse()?;
+            let n: i64 = r.try_get("n")?;
+            if let Some(e) = out.iter_mut().find(|e| e.0 == s) {
+                e.1 = n;
+            }
+        }
+        Ok(out)
+    }
+}
+
+fn json_array(v: &[f64]) -> String {
+    serde_json::to_string(v).expect("finite numbers")
+}
+
+fn to_row(r: &sqlx::sqlite::SqliteRow) -> Result<JobRow, StorageError> {
+    let wall: String = r.try_get("wall_time_ms")?;
+    Ok(JobRow {
+        id: r.try_get("id")?,
+        status: r.try_get::<String, _>("status")?.parse()?,
+        spec: r.try_get("spec")?,
+        wavelengths: r.try_get("wavelengths")?,
+        progress: r.try_get("progress")?,
+        wall_time_ms: serde_json::from_str(&wall)
+            .map_err(|e| StorageError::Corrupt(format!("wall_time_ms: {e}")))?,
+        error_estimate: r.try_get("error_estimate")?,
+        error: r.try_get("error")?,
+        digest: r.try_get("digest")?,
+        size: r.try_get("size")?,
+        media_type: r.try_get("media_type")?,
+        attempts: r.try_get("attempts")?,
+        created_at: r.try_get("created_at")?,
+        updated_at: r.try_get("updated_at")?,
+        finished_at: r.try_get("finished_at")?,
+    })
+}

@@ -1,0 +1,381 @@
+//! The real `polbrdf serve` driven over HTTP: submit → poll → table, the
+//! cache, single-flight of identical submissions, every class of bad input
+//! with its status and problem+json body, the body cap, token auth.
+
+mod service_support;
+
+use serde_json::Value;
+use service_support::*;
+
+fn assert_problem(status: u16, body: &Value, headers: &reqwest::header::HeaderMap, want: u16) {
+    assert_eq!(status, want, "{body}");
+    assert_eq!(
+        headers
+            .get("content-type")
+            .map(|v| v.to_str().unwrap().to_string()),
+        Some("application/problem+json".to_string()),
+        "{body}"
+    );
+    assert_eq!(body["status"], want, "{body}");
+    assert!(
+        body["type"].as_str().unwrap().starts_with("/problems/"),
+        "{body}"
+    );
+    assert!(
+        body["title"].is_string() && body["detail"].is_string(),
+        "{body}"
+    );
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn submit_poll_table_cache_and_conditional_get() {
+    let dir = TempDir::new("api");
+    let s = Server::start(&dir.0.join("data"), &[], &[]);
+    let c = client();
+
+    // Submit: queued (or already running), with Location.
+    let (code, v, h) = post(&c, &s, TINY).await;
+    assert_eq!(code, 202, "{v}");
+    let id = v["id"].as_str().unwrap().to_string();
+    assert_eq!(id.len(), 64);
+    assert!(v["status"] == "queued" || v["status"] == "running", "{v}");
+    assert_eq!(h["location"], format!("/v1/brdfs/{id}").as_str());
+    assert_eq!(v["links"]["table"], format!("/v1/brdfs/{id}/table"));
+
+    // Poll until done: the resource carries the canonical spec, progress,
+    // per-wavelength timings and the solver's error estimate.
+    let r = wait_done(&c, &s, &id).await;
+    assert_eq!(r["id"], id.as_str());
+    assert_eq!(r["progress"], 1.0);
+    assert_eq!(r["wall_time_ms"].as_array().unwrap().len(), 1);
+    assert!(r["error_estimate"].as_f64().unwrap() >= 0.0, "{r}");
+    assert_eq!(r["spec"]["solver"]["streams"], 4);
+    assert_eq!(r["spec"]["solver"]["polarized"], true);
+    assert_eq!(
+        r["spec"]["layers"][0]["scatterer"]["rayleigh"]["depolarization"],
+        0.0
+    );
+    assert!(r["error"].is_null());
+    assert!(r["created_at"].as_str().unwrap().ends_with('Z'));
+    let digest = r["result"]["digest"].as_str().unwrap().to_string();
+
+    // The table: bytes whose SHA-256 is the ETag, immutable caching.
+    let t = c
+        .get(s.url(&format!("/v1/brdfs/{id}/table")))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(t.status(), 200);
+    assert_eq!(t.headers()["etag"], format!("\"{digest}\"").as_str());
+    assert_eq!(
+        t.headers()["cache-control"],
+        "public, max-age=31536000, immutable"
+    );
+    assert_eq!(
+        t.headers()["content-type"],
+        r["result"]["media_type"].as_str().unwrap()
+    );
+    let bytes = t.bytes().await.unwrap();
+    assert_eq!(sha256_hex(&bytes), digest);
+    assert_eq!(bytes.len() as i64, r["result"]["size"].as_i64().unwrap());
+    let doc: Value = serde_json::from_slice(&bytes).unwrap();
+    let w = &doc["wavelengths"][0];
+    let (n, ns) = (
+        doc["mu"].as_array().unwrap().len(),
+        w["ns"].as_u64().unwrap(),
+    );
+    assert_eq!(ns, 4);
+    assert_eq!(
+        w["f"].as_array().unwrap().len() as u64,
+        w["orders"].as_u64().unwrap() * (n as u64).pow(2) * ns * ns
+    );
+
+    // If-None-Match → 304; HEAD → headers only.
+    let nm = c
+        .get(s.url(&format!("/v1/brdfs/{id}/table")))
+        .header("if-none-match", format!("\"{digest}\""))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(nm.status(), 304);
+    assert_eq!(nm.headers()["etag"], format!("\"{digest}\"").as_str());
+    let head = c
+        .head(s.url(&format!("/v1/brdfs/{id}/table")))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(head.status(), 200);
+    assert_eq!(head.headers()["etag"], format!("\"{digest}\"").as_str());
+    assert_eq!(
+        head.headers()["content-length"],
+        bytes.len().to_string().as_str()
+    );
+    assert!(head.bytes().await.unwrap().is_empty());
+
+    // The same material written differently: a cache hit (200, the
+    // resource), no second solve, counted in /metrics.
+    let same = r#"{"solver":{"polarized":true,"streams":4},"base":{"lambertian":{"albedo":0.30}},
+                   "layers":[{"scatterer":{"rayleigh":{"albedo":0.9,"depolarization":0}},"optical_thickness":0.5}]}"#;
+    let (code, v, h) = post(&c, &s, same).await;
+    assert_eq!(code, 200, "{v}");
+    assert_eq!(v["id"], id.as_str());
+    assert_eq!(v["status"], "done");
+    assert_eq!(v["result"]["digest"], digest.as_str());
+    assert_eq!(h["content-location"], format!("/v1/brdfs/{id}").as_str());
+    assert_eq!(metric(&c, &s, "polbrdf_solves_started_total").await, 1.0);
+    assert_eq!(metric(&c, &s, "polbrdf_solves_succeeded_total").await, 1.0);
+    assert_eq!(metric(&c, &s, "polbrdf_cache_hits_total").await, 1.0);
+    assert_eq!(metric(&c, &s, "polbrdf_cache_misses_total").await, 1.0);
+    let text = c
+        .get(s.url("/metrics"))
+        .send()
+        .await
+        .unwrap()
+        .text()
+        .await
+        .unwrap();
+    assert!(text.contains("polbrdf_jobs{state=\"done\"} 1"), "{text}");
+    assert!(text.contains("polbrdf_solve_seconds_count 1"), "{text}");
+    assert!(
+        text.contains(
+            "polbrdf_http_requests_total{method=\"POST\",route=\"/v1/brdfs\",status=\"200\"} 1"
+        ),
+        "{text}"
+    );
+    assert!(text.contains("polbrdf_queue_depth 0"), "{text}");
+
+    // Health and readiness.
+    assert_eq!(get_json(&c, &s, "/healthz").await.0, 200);
+    assert_eq!(get_json(&c, &s, "/readyz").await.0, 200);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn concurrent_identical_submissions_share_one_solve() {
+    let dir = TempDir::new("flight");
+    let s = Server::start(&dir.0.join("data"), &[], &[]);
+    let c = client();
+    let spec = slow_spec(2, 0.8);
+    let mut tasks = Vec::new();
+    for _ in 0..200 {
+        let (c, url, spec) = (c.clone(), s.url("/v1/brdfs"), spec.clone());
+        tasks.push(tokio::spawn(async move {
+            let r = c
+                .post(url)
+                .header("content-type", "application/json")
+                .body(spec)
+                .send()
+                .await
+                .unwrap();
+            let code = r.status().as_u16();
+            (code, r.json::<Value>().await.unwrap())
+        }));
+    }
+    let mut ids = std::collections::BTreeSet::new();
+    for t in tasks {
+        let (code, v) = t.await.unwrap();
+        assert!(code == 202 || code == 200, "{code} {v}");
+        ids.insert(v["id"].as_str().unwrap().to_string());
+    }
+    assert_eq!(ids.len(), 1);
+    let id = ids.into_iter().next().unwrap();
+    wait_done(&c, &s, &id).await;
+    assert_eq!(metric(&c, &s, "polbrdf_solves_started_total").await, 1.0);
+    assert_eq!(metric(&c, &s, "polbrdf_cache_misses_total").await, 1.0);
+    let joined = metric(&c, &s, "polbrdf_jobs_joined_total").await;
+    let hits = metric(&c, &s, "polbrdf_cache_hits_total").await;
+    assert_eq!(joined + hits, 199.0);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn bad_input_gets_its_status_and_a_problem() {
+    let dir = TempDir::new("bad");
+    let s = Server::start(
+        &dir.0.join("data"),
+        &["--max-body-bytes", "2000", "--max-streams", "32"],
+        &[],
+    );
+    let c = client();
+    let layer = r#"{"optical_thickness":1,"scatterer":{"rayleigh":{"albedo":1}}}"#;
+    // (body, expected JSON path or None, a fragment of the detail)
+    let cases: Vec<(String, Option<&str>, &str)> = vec![
+        // malformed JSON
+        (r#"{"layers":[ "#.into(), None, "EOF"),
+        // wrong type
+        (
+            r#"{"layers":[{"optical_thickness":1,"scatterer":{"rayleigh":{"albedo":"high"}}}]}"#
+                .into(),
+            Some("layers[0].scatterer.rayleigh.albedo"),
+            "invalid type",
+        ),
+        // unknown key
+        (
+            format!(r#"{{"layers":[{layer}],"colour":"red"}}"#),
+            None,
+            "colour",
+        ),
+        // NaN is not JSON
+        (
+            r#"{"layers":[{"optical_thickness":NaN,"scatterer":{"rayleigh":{"albedo":1}}}]}"#
+                .into(),
+            None,
+            "",
+        ),
+        // a number too large for f64 (would be Inf)
+        (
+            r#"{"layers":[{"optical_thickness":1e999,"scatterer":{"rayleigh":{"albedo":1}}}]}"#
+                .into(),
+            None,
+            "",
+        ),
+        // out of range: path and allowed range
+        (
+            r#"{"layers":[{"optical_thickness":-1,"scatterer":{"rayleigh":{"albedo":1}}}]}"#.into(),
+            Some("layers[0].optical_thickness"),
+            "[0, 1e12]",
+        ),
+        // missing field
+        (r#"{"base":"black"}"#.into(), None, "layers"),
+        // over a service cap
+        (
+            format!(r#"{{"layers":[{layer}],"solver":{{"streams":64}}}}"#),
+            Some("solver.streams"),
+            "[1, 32]",
+        ),
+        // not UTF-8 is handled below; an empty body
+        (String::new(), None, ""),
+    ];
+    for (body, path, fragment) in cases {
+        let (code, v, h) = post(&c, &s, &body).await;
+        assert_problem(code, &v, &h, 422);
+        if let Some(p) = path {
+            assert_eq!(v["path"], p, "{body} -> {v}");
+        } else {
+            assert!(v["path"].is_string(), "{body} -> {v}");
+        }
+        assert!(
+            v["detail"].as_str().unwrap().contains(fragment),
+            "{body} -> {v}"
+        );
+    }
+    let bytes = c
+        .post(s.url("/v1/brdfs"))
+        .header("content-type", "application/json")
+        .body(vec![0xff, 0xfe, b'{'])
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(bytes.status(), 422);
+
+    // Body over the cap: 413, whether announced by Content-Length or not.
+    let big = format!(
+        r#"{{"layers":[{layer}],"wavelengths_nm":[{}]}}"#,
+        vec!["500"; 1000].join(",")
+    );
+    let (code, v, h) = post(&c, &s, &big).await;
+    assert_problem(code, &v, &h, 413);
+
+    // Content type.
+    let r = c
+        .post(s.url("/v1/brdfs"))
+        .header("content-type", "text/plain")
+        .body(TINY)
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(r.status(), 415);
+
+    // Unknown and malformed ids, unknown routes: 404 problems.
+    for path in [
+        format!("/v1/brdfs/{}", "0".repeat(64)),
+        format!("/v1/brdfs/{}/table", "0".repeat(64)),
+        "/v1/brdfs/not-an-id".to_string(),
+        "/v2/nothing".to_string(),
+    ] {
+        let r = c.get(s.url(&path)).send().await.unwrap();
+        let (code, h) = (r.status().as_u16(), r.headers().clone());
+        let v: Value = r.json().await.unwrap();
+        assert_problem(code, &v, &h, 404);
+    }
+    // Nothing was queued by any of this.
+    assert_eq!(metric(&c, &s, "polbrdf_cache_misses_total").await, 0.0);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn full_queue_is_503_with_retry_after() {
+    let dir = TempDir::new("full");
+    let s = Server::start(&dir.0.join("data"), &["--max-queue", "0"], &[]);
+    let c = client();
+    let (code, v, h) = post(&c, &s, TINY).await;
+    assert_problem(code, &v, &h, 503);
+    assert_eq!(v["type"], "/problems/queue-full");
+    assert!(h["retry-after"].to_str().unwrap().parse::<u64>().unwrap() >= 1);
+    assert_eq!(metric(&c, &s, "polbrdf_jobs_rejected_total").await, 1.0);
+    // Refused submissions leave no row behind.
+    let id = v["id"].as_str();
+    assert!(id.is_none());
+    let text = c
+        .get(s.url("/metrics"))
+        .send()
+        .await
+        .unwrap()
+        .text()
+        .await
+        .unwrap();
+    assert!(text.contains("polbrdf_jobs{state=\"queued\"} 0"), "{text}");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn bearer_token_guards_writes_and_optionally_reads() {
+    let dir = TempDir::new("auth");
+    let c = client();
+    {
+        let s = Server::start(&dir.0.join("a"), &[], &[("POLBRDF_TOKEN", "s3cret")]);
+        let (code, v, h) = post(&c, &s, TINY).await;
+        assert_problem(code, &v, &h, 401);
+        assert!(h.contains_key("www-authenticate"));
+        let r = c
+            .post(s.url("/v1/brdfs"))
+            .header("content-type", "application/json")
+            .bearer_auth("wrong")
+            .body(TINY)
+            .send()
+            .await
+            .unwrap();
+        assert_eq!(r.status(), 401);
+        let r = c
+            .post(s.url("/v1/brdfs"))
+            .header("content-type", "application/json")
+            .bearer_auth("s3cret")
+            .body(TINY)
+            .send()
+            .await
+            .unwrap();
+        assert_eq!(r.status(), 202);
+        let id = r.json::<Value>().await.unwrap()["id"]
+            .as_str()
+            .unwrap()
+            .to_string();
+        // Reads are open without --token-reads.
+        wait_done(&c, &s, &id).await;
+        assert_eq!(get_json(&c, &s, "/metrics").await.0, 200);
+    }
+    {
+        let s = Server::start(
+            &dir.0.join("b"),
+            &["--token", "s3cret", "--token-reads"],
+            &[],
+        );
+        let (code, _) = get_json(&c, &s, &format!("/v1/brdfs/{}", "0".repeat(64))).await;
+        assert_eq!(code, 401);
+        assert_eq!(get_json(&c, &s, "/metrics").await.0, 401);
+        assert_eq!(get_json(&c, &s, "/healthz").await.0, 200);
+        assert_eq!(get_json(&c, &s, "/readyz").await.0, 200);
+        let r = c
+            .get(s.url(&format!("/v1/brdfs/{}", "0".repeat(64))))
+            .bearer_auth("s3cret")
+            .send()
+            .await
+            .unwrap();
+        assert_eq!(r.status(), 404);
+    }
+}

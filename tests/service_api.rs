@@ -379,3 +379,47 @@ async fn bearer_token_guards_writes_and_optionally_reads() {
         assert_eq!(r.status(), 404);
     }
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_failed_job_carries_its_typed_error() {
+    let dir = TempDir::new("failed");
+    let s = Server::start(&dir.0.join("data"), &[], &[]);
+    let c = client();
+    // Valid spec, but silver has no tabulated index at 5000 nm: the solve
+    // fails deterministically at that wavelength.
+    let spec = r#"{"layers":[{"optical_thickness":0.1,"scatterer":{"rayleigh":{"albedo":1}}}],
+                   "base":{"fresnel":{"material":"silver"}},"wavelengths_nm":[5000],
+                   "solver":{"streams":4}}"#;
+    let (code, v, _) = post(&c, &s, spec).await;
+    assert_eq!(code, 202, "{v}");
+    let id = v["id"].as_str().unwrap().to_string();
+    let r = wait_for(&c, &s, &id, std::time::Duration::from_secs(60), |v| {
+        v["status"] == "failed"
+    })
+    .await;
+    let e = &r["error"];
+    assert_eq!(e["type"], "/problems/invalid-spec", "{r}");
+    assert_eq!(e["path"], "base.fresnel.material", "{r}");
+    assert_eq!(e["wavelength_nm"], 5000.0, "{r}");
+    assert_eq!(e["retryable"], false, "{r}");
+    assert!(r["result"].is_null());
+
+    // The table of a failed job: 409 with the job's error.
+    let t = c
+        .get(s.url(&format!("/v1/brdfs/{id}/table")))
+        .send()
+        .await
+        .unwrap();
+    let (code, h) = (t.status().as_u16(), t.headers().clone());
+    let p: Value = t.json().await.unwrap();
+    assert_problem(code, &p, &h, 409);
+    assert_eq!(p["type"], "/problems/job-failed");
+    assert_eq!(p["path"], "base.fresnel.material");
+
+    // Deterministic: a repeated POST answers from the cache, no new solve.
+    let (code, v, _) = post(&c, &s, spec).await;
+    assert_eq!(code, 200, "{v}");
+    assert_eq!(v["status"], "failed");
+    assert_eq!(metric(&c, &s, "polbrdf_solves_started_total").await, 1.0);
+    assert_eq!(metric(&c, &s, "polbrdf_solves_failed_total").await, 1.0);
+}

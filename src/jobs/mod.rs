@@ -80,7 +80,7 @@ impl From<StorageError> for JobError {
 pub enum Submission {
     /// The id is final in the index (done with its blob present, or failed
     /// deterministically).
-    Cached(JobRow),
+    Cached(Box<JobRow>),
     /// The job is queued or running (started now or joined).
     Pending {
         /// Spec id.
@@ -92,7 +92,7 @@ pub enum Submission {
 
 #[derive(Clone, Debug)]
 enum Decision {
-    Cached(JobRow),
+    Cached(Box<JobRow>),
     Enqueued,
 }
 
@@ -319,7 +319,7 @@ impl Jobs {
                     }),
                     // Finished while we joined: the row is final.
                     _ => match self.index.get(id).await? {
-                        Some(row) => Ok(Submission::Cached(row)),
+                        Some(row) => Ok(Submission::Cached(Box::new(row))),
                         None => Err(JobError::Storage(format!("row {id} vanished"))),
                     },
                 }
@@ -352,14 +352,14 @@ impl Jobs {
                     };
                     if present {
                         self.metrics.cache_hits.fetch_add(1, Ordering::Relaxed);
-                        return Ok(Decision::Cached(row));
+                        return Ok(Decision::Cached(Box::new(row)));
                     }
                     self.metrics.blobs_invalid.fetch_add(1, Ordering::Relaxed);
                     tracing::warn!(id, "result blob missing; solving again");
                 }
                 Status::Failed if !is_retryable(&row) => {
                     self.metrics.cache_hits.fetch_add(1, Ordering::Relaxed);
-                    return Ok(Decision::Cached(row));
+                    return Ok(Decision::Cached(Box::new(row)));
                 }
                 _ => {}
             }

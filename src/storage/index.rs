@@ -312,3 +312,66 @@ fn to_row(r: &sqlx::sqlite::SqliteRow) -> Result<JobRow, StorageError> {
         finished_at: r.try_get("finished_at")?,
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[tokio::test]
+    async fn row_lifecycle() {
+        let dir = std::env::temp_dir().join(format!(
+            "polbrdf-index-{}-{}",
+            std::process::id(),
+            crate::storage::now_ms()
+        ));
+        std::fs::create_dir_all(&dir).unwrap();
+        let url = format!("sqlite://{}", dir.join("i.sqlite").display());
+        let ix = Index::open(&url).await.unwrap();
+        let id = "a".repeat(64);
+        assert_eq!(ix.get(&id).await.unwrap(), None);
+        ix.enqueue(&id, "{}", 2, 10).await.unwrap();
+        let r = ix.get(&id).await.unwrap().unwrap();
+        assert_eq!(
+            (r.status, r.attempts, r.created_at),
+            (Status::Queued, 0, 10)
+        );
+        ix.start(&id, 11).await.unwrap();
+        ix.progress(&id, 0.5, &[1.5], 12).await.unwrap();
+        let r = ix.get(&id).await.unwrap().unwrap();
+        assert_eq!(
+            (r.status, r.attempts, r.progress),
+            (Status::Running, 1, 0.5)
+        );
+        assert_eq!(r.wall_time_ms, vec![1.5]);
+        assert_eq!(ix.unfinished().await.unwrap().len(), 1);
+        ix.finish(&id, &"d".repeat(64), 3, "x/y", &[1.5, 2.5], Some(1e-6), 13)
+            .await
+            .unwrap();
+        let r = ix.get(&id).await.unwrap().unwrap();
+        assert_eq!(r.status, Status::Done);
+        assert_eq!(
+            (r.size, r.finished_at, r.error_estimate),
+            (Some(3), Some(13), Some(1e-6))
+        );
+        assert!(ix.unfinished().await.unwrap().is_empty());
+        // A done row is not re-queued by requeue (only queued/running are).
+        ix.requeue(&id, 14).await.unwrap();
+        assert_eq!(ix.get(&id).await.unwrap().unwrap().status, Status::Done);
+        // Enqueue again resets the result but keeps created_at and attempts.
+        ix.enqueue(&id, "{}", 2, 15).await.unwrap();
+        let r = ix.get(&id).await.unwrap().unwrap();
+        assert_eq!(
+            (r.status, r.digest, r.created_at, r.attempts),
+            (Status::Queued, None, 10, 1)
+        );
+        ix.fail(&id, r#"{"type":"x"}"#, 16).await.unwrap();
+        let counts = ix.counts().await.unwrap();
+        assert!(counts.contains(&(Status::Failed, 1)) && counts.contains(&(Status::Done, 0)));
+        ix.close().await;
+        // Reopening runs the (already applied) migrations again: a no-op.
+        let ix = Index::open(&url).await.unwrap();
+        assert_eq!(ix.get(&id).await.unwrap().unwrap().status, Status::Failed);
+        ix.close().await;
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}

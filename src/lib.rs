@@ -4,6 +4,7 @@
 //! `cli` -> `solver` -> `physics`. `physics` and `solver` are pure: no I/O.
 //! Conventions (units, Stokes frames, signs) are in `docs/conventions.md`.
 
+pub mod brdf;
 pub mod cli;
 pub mod http;
 pub mod jobs;

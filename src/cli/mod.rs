@@ -3,6 +3,8 @@
 
 pub mod bench;
 pub mod convergence;
+pub mod eval;
+pub mod export;
 pub mod mie;
 pub mod serve;
 pub mod solve;
@@ -31,7 +33,14 @@ enum Command {
         /// Internal field request: {"mu0", "phi0_deg", "stokes", "tau", "mu", "phi_deg"}.
         #[arg(long)]
         field: Option<String>,
+        /// Also write the BRDF table (binary, docs/table-format.md) to this file.
+        #[arg(long)]
+        table: Option<String>,
     },
+    /// Evaluate a BRDF table at one direction pair.
+    Eval(eval::EvalArgs),
+    /// Export a BRDF table: dense .npy, JSON point set or CSV slice.
+    Export(export::ExportArgs),
     /// Error against run time: solve at increasing streams, compare with a reference.
     Convergence(convergence::ConvergenceArgs),
     /// Run the HTTP service (docs/service.md).
@@ -50,7 +59,15 @@ pub fn main() -> i32 {
             spec,
             points,
             field,
-        } => solve::run(&spec, points.as_deref(), field.as_deref()),
+            table,
+        } => solve::run(&spec, points.as_deref(), field.as_deref()).and_then(|mut v| {
+            if let Some(out) = table {
+                v["table"] = export::write_table(&spec, &out)?;
+            }
+            Ok(v)
+        }),
+        Command::Eval(a) => eval::run(&a),
+        Command::Export(a) => export::run(&a),
         Command::Convergence(a) => convergence::run(&a),
         Command::Bench(b) => bench::run(&b),
         Command::Serve(a) => return serve::main(&a),

@@ -1,0 +1,473 @@
+//! The binary table file, version 1 (docs/table-format.md, the normative
+//! description). Little-endian throughout.
+//!
+//! ```text
+//! header (56 bytes)
+//!   0  8  magic  b"PBRDFTAB"
+//!   8  4  u32    format version (1)
+//!  12  4  u32    data type of the coefficients: 1 = f32, 2 = f64
+//!  16  8  u64    payload length in bytes (everything after the header)
+//!  24 32  SHA-256 of header bytes 0..24 followed by the payload
+//! payload
+//!   u64 L, L bytes of UTF-8 JSON metadata
+//!   u32 W (wavelengths), u32 N (polar nodes), u32 ns (1 or 4), u32 flags
+//!       (bit 0: specular matrices present)
+//!   f64[N] θ nodes (deg), f64[N] μ nodes, f64[W] wavelengths (nm; NaN: none)
+//!   u32[W] M_w (Fourier orders per wavelength)
+//!   per wavelength w: data[M_w][N (out)][N (in)][ns][ns]  f^m(μ_o, μ_i)
+//!                     then, if flag bit 0: data[N (in)][4][4]  specular S
+//! ```
+//!
+//! Readers reject a short file, a bad magic, an unknown version or data
+//! type, a payload length that disagrees with the file size and a SHA-256
+//! mismatch, each with its own message, before parsing anything else.
+
+use super::BrdfError;
+use super::grid::PolarGrid;
+use super::table::{Metadata, Table, WavelengthTable};
+use crate::physics::stokes::Mueller;
+use sha2::{Digest, Sha256};
+
+/// The first 8 bytes of every table file.
+pub const MAGIC: [u8; 8] = *b"PBRDFTAB";
+
+/// The format version this build writes and reads.
+pub const VERSION: u32 = 1;
+
+/// Header size in bytes.
+pub const HEADER_LEN: usize = 56;
+
+/// Storage type of the coefficients (axes are always f64).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum DataType {
+    /// IEEE single precision (relative rounding 6e-8, far below the
+    /// interpolation error; half the size).
+    F32,
+    /// IEEE double precision (lossless).
+    F64,
+}
+
+impl DataType {
+    fn code(self) -> u32 {
+        match self {
+            DataType::F32 => 1,
+            DataType::F64 => 2,
+        }
+    }
+    fn size(self) -> usize {
+        match self {
+            DataType::F32 => 4,
+            DataType::F64 => 8,
+        }
+    }
+}
+
+fn fmt_err(msg: impl Into<String>) -> BrdfError {
+    BrdfError::Format(msg.into())
+}
+
+fn digest(header_start: &[u8], payload: &[u8]) -> [u8; 32] {
+    let mut h = Sha256::new();
+    h.update(header_start);
+    h.update(payload);
+    h.finalize().into()
+}
+
+fn hex(b: &[u8]) -> String {
+    b.iter().map(|x| format!("{x:02x}")).collect()
+}
+
+/// Serialise a table (docs/table-format.md).
+pub fn to_bytes(table: &Table, dtype: DataType) -> Result<Vec<u8>, BrdfError> {
+    let n = table.grid.len();
+    let ns = table.wavelengths.first().map_or(4, |w| w.ns);
+    let has_spec = table.wavelengths.iter().any(|w| w.specular.is_some());
+    for w in &table.wavelengths {
+        if w.ns != ns || w.nodes != n || w.specular.is_some() != has_spec {
+            return Err(fmt_err(
+                "inconsistent wavelength blocks (Stokes components, nodes or specular)",
+            ));
+        }
+        if w.f.len() != w.orders * n * n * ns * ns {
+            return Err(fmt_err("coefficient array has the wrong length"));
+        }
+    }
+    let meta = serde_json::to_vec(&table.metadata).map_err(|e| fmt_err(e.to_string()))?;
+    let mut p = Vec::new();
+    p.extend_from_slice(&(meta.len() as u64).to_le_bytes());
+    p.extend_from_slice(&meta);
+    for x in [
+        table.wavelengths.len() as u32,
+        n as u32,
+        ns as u32,
+        u32::from(has_spec),
+    ] {
+        p.extend_from_slice(&x.to_le_bytes());
+    }
+    for x in table.grid.theta_deg.iter().chain(&table.grid.mu) {
+        p.extend_from_slice(&x.to_le_bytes());
+    }
+    for w in &table.wavelengths {
+        p.extend_from_slice(&w.wavelength_nm.unwrap_or(f64::NAN).to_le_bytes());
+    }
+    for w in &table.wavelengths {
+        p.extend_from_slice(&(w.orders as u32).to_le_bytes());
+    }
+    let put = |p: &mut Vec<u8>, x: f64| match dtype {
+        DataType::F32 => p.extend_from_slice(&(x as f32).to_le_bytes()),
+        DataType::F64 => p.extend_from_slice(&x.to_le_bytes()),
+    };
+    for w in &table.wavelengths {
+        for &x in &w.f {
+            put(&mut p, x);
+        }
+        if let Some(s) = &w.specular {
+            for m in s {
+                for &x in m.iter().flatten() {
+                    put(&mut p, x);
+                }
+            }
+        }
+    }
+    let mut out = Vec::with_capacity(HEADER_LEN + p.len());
+    out.extend_from_slice(&MAGIC);
+    out.extend_from_slice(&VERSION.to_le_bytes());
+    out.extend_from_slice(&dtype.code().to_le_bytes());
+    out.extend_from_slice(&(p.len() as u64).to_le_bytes());
+    let sha = digest(&out[..24], &p);
+    out.extend_from_slice(&sha);
+    out.extend_from_slice(&p);
+    Ok(out)
+}
+
+/// A bounds-checked little-endian reader over the payload.
+struct Cursor<'a> {
+    b: &'a [u8],
+    at: usize,
+}
+
+impl<'a> Cursor<'a> {
+    fn take(&mut self, n: usize, what: &str) -> Result<&'a [u8], BrdfError> {
+        let end = self
+            .at
+            .checked_add(n)
+            .filter(|&e| e <= self.b.len())
+            .ok_or_else(|| {
+                fmt_err(format!(
+                    "malformed table: {what} runs past the end of the payload"
+                ))
+            })?;
+        let s = &self.b[self.at..end];
+        self.at = end;
+        Ok(s)
+    }
+    fn u32(&mut self, what: &str) -> Result<u32, BrdfError> {
+        Ok(u32::from_le_bytes(self.take(4, what)?.try_into().unwrap()))
+    }
+    fn u64(&mut self, what: &str) -> Result<u64, BrdfError> {
+        Ok(u64::from_le_bytes(self.take(8, what)?.try_into().unwrap()))
+    }
+    fn f64s(&mut self, n: usize, what: &str) -> Result<Vec<f64>, BrdfError> {
+        let bytes = self.take(
+            n.checked_mul(8).ok_or_else(|| fmt_err("size overflow"))?,
+            what,
+        )?;
+        Ok(bytes
+            .chunks_exact(8)
+            .map(|c| f64::from_le_bytes(c.try_into().unwrap()))
+            .collect())
+    }
+    fn data(&mut self, n: usize, dtype: DataType, what: &str) -> Result<Vec<f64>, BrdfError> {
+        let len = n
+            .checked_mul(dtype.size())
+            .ok_or_else(|| fmt_err("size overflow"))?;
+        let bytes = self.take(len, what)?;
+        let v: Vec<f64> = match dtype {
+            DataType::F32 => bytes
+                .chunks_exact(4)
+                .map(|c| f32::from_le_bytes(c.try_into().unwrap()) as f64)
+                .collect(),
+            DataType::F64 => bytes
+                .chunks_exact(8)
+                .map(|c| f64::from_le_bytes(c.try_into().unwrap()))
+                .collect(),
+        };
+        if v.iter().any(|x| !x.is_finite()) {
+            return Err(fmt_err(format!(
+                "malformed table: {what} holds a non-finite value"
+            )));
+        }
+        Ok(v)
+    }
+}
+
+/// Check the header (magic, version, data type, length, SHA-256) and return
+/// the data type and the payload.
+fn check_header(b: &[u8]) -> Result<(DataType, &[u8]), BrdfError> {
+    if b.len() < MAGIC.len() || b[..MAGIC.len()] != MAGIC {
+        return Err(fmt_err(format!(
+            "not a polbrdf table: bad magic bytes (expected {:?})",
+            std::str::from_utf8(&MAGIC).unwrap()
+        )));
+    }
+    if b.len() < HEADER_LEN {
+        return Err(fmt_err(format!(
+            "truncated table: {} bytes, shorter than the {HEADER_LEN}-byte header",
+            b.len()
+        )));
+    }
+    let version = u32::from_le_bytes(b[8..12].try_into().unwrap());
+    if version != VERSION {
+        return Err(fmt_err(format!(
+            "unsupported table format version {version} (this build reads version {VERSION})"
+        )));
+    }
+    let dtype = match u32::from_le_bytes(b[12..16].try_into().unwrap()) {
+        1 => DataType::F32,
+        2 => DataType::F64,
+        c => return Err(fmt_err(format!("unknown data type code {c} in the header"))),
+    };
+    let announced = u64::from_le_bytes(b[16..24].try_into().unwrap());
+    let have = (b.len() - HEADER_LEN) as u64;
+    if have < announced {
+        return Err(fmt_err(format!(
+            "truncated table: the header announces {announced} bytes of content, the file has {have}"
+        )));
+    }
+    if have > announced {
+        return Err(fmt_err(format!(
+            "malformed table: {} bytes after the announced end of the content",
+            have - announced
+        )));
+    }
+    let payload = &b[HEADER_LEN..];
+    let sha = digest(&b[..24], payload);
+    if sha[..] != b[24..56] {
+        return Err(fmt_err(format!(
+            "checksum mismatch: the table is corrupted (SHA-256 in the header {}, of the content {})",
+            hex(&b[24..56]),
+            hex(&sha)
+        )));
+    }
+    Ok((dtype, payload))
+}
+
+/// Parse a table file's bytes (docs/table-format.md), verifying the header
+/// and the SHA-256 first.
+pub fn from_bytes(b: &[u8]) -> Result<Table, BrdfError> {
+    let (dtype, payload) = check_header(b)?;
+    let mut c = Cursor { b: payload, at: 0 };
+    let meta_len = c.u64("metadata length")?;
+    let meta_len = usize::try_from(meta_len).map_err(|_| fmt_err("metadata too long"))?;
+    let meta: Metadata = serde_json::from_slice(c.take(meta_len, "metadata")?)
+        .map_err(|e| fmt_err(format!("malformed table metadata: {e}")))?;
+    let w = c.u32("wavelength count")? as usize;
+    let n = c.u32("node count")? as usize;
+    let ns = c.u32("Stokes components")? as usize;
+    let flags = c.u32("flags")?;
+    if ns != 1 && ns != 4 {
+        return Err(fmt_err(format!("malformed table: {ns} Stokes components")));
+    }
+    if flags > 1 {
+        return Err(fmt_err(format!(
+            "malformed table: unknown flags {flags:#x}"
+        )));
+    }
+    if w == 0 || meta.wavelengths.len() != w {
+        return Err(fmt_err(format!(
+            "malformed table: {w} wavelength blocks, metadata lists {}",
+            meta.wavelengths.len()
+        )));
+    }
+    let theta = c.f64s(n, "polar nodes")?;
+    let mu = c.f64s(n, "polar cosines")?;
+    let grid = PolarGrid::from_theta_deg(theta)
+        .map_err(|e| fmt_err(format!("malformed table: polar grid: {e}")))?;
+    if grid.mu.iter().zip(&mu).any(|(a, b)| (a - b).abs() > 1e-12) {
+        return Err(fmt_err(
+            "malformed table: the stored cosines are not cos θ of the stored nodes",
+        ));
+    }
+    let grid = PolarGrid { mu, ..grid };
+    let wl = c.f64s(w, "wavelengths")?;
+    let mut orders = Vec::with_capacity(w);
+    for _ in 0..w {
+        orders.push(c.u32("Fourier orders")? as usize);
+    }
+    let mut blocks = Vec::with_capacity(w);
+    for k in 0..w {
+        let count = orders[k]
+            .checked_mul(n * n * ns * ns)
+            .ok_or_else(|| fmt_err("size overflow"))?;
+        let f = c.data(count, dtype, "coefficients")?;
+        let specular = if flags & 1 == 1 {
+            let v = c.data(n * 16, dtype, "specular matrices")?;
+            Some(
+                v.chunks_exact(16)
+                    .map(|ch| {
+                        let mut m: Mueller = [[0.0; 4]; 4];
+                        for (p, row) in m.iter_mut().enumerate() {
+                            row.copy_from_slice(&ch[4 * p..4 * p + 4]);
+                        }
+                        m
+                    })
+                    .collect(),
+            )
+        } else {
+            None
+        };
+        blocks.push(WavelengthTable {
+            wavelength_nm: if wl[k].is_nan() { None } else { Some(wl[k]) },
+            ns,
+            nodes: n,
+            orders: orders[k],
+            f,
+            specular,
+            wall_time_ms: meta.wavelengths[k].wall_time_ms,
+        });
+    }
+    if c.at != payload.len() {
+        return Err(fmt_err(format!(
+            "malformed table: {} unread bytes at the end of the content",
+            payload.len() - c.at
+        )));
+    }
+    Ok(Table {
+        metadata: meta,
+        grid,
+        wavelengths: blocks,
+    })
+}
+
+/// Write a table file (via a temporary file in the same directory, renamed
+/// into place, so a reader never sees a half-written table).
+pub fn write_file(table: &Table, path: &str, dtype: DataType) -> Result<(), BrdfError> {
+    let bytes = to_bytes(table, dtype)?;
+    let tmp = format!("{path}.tmp{}", std::process::id());
+    let io = |source| BrdfError::Io {
+        path: path.to_string(),
+        source,
+    };
+    std::fs::write(&tmp, &bytes).map_err(io)?;
+    std::fs::rename(&tmp, path).map_err(|e| {
+        let _ = std::fs::remove_file(&tmp);
+        io(e)
+    })
+}
+
+/// Read and verify a table file.
+pub fn read_file(path: &str) -> Result<Table, BrdfError> {
+    let b = std::fs::read(path).map_err(|source| BrdfError::Io {
+        path: path.to_string(),
+        source,
+    })?;
+    from_bytes(&b).map_err(|e| match e {
+        BrdfError::Format(m) => BrdfError::Format(format!("{path}: {m}")),
+        other => other,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::brdf::table::Table;
+
+    /// A small, quick, wavelength-free table; with a mirror base the
+    /// specular block is present.
+    fn small_table(mirror: bool) -> Table {
+        let base = if mirror {
+            r#"{"fresnel": {"material": {"n": 1.5, "k": 0.01}}}"#
+        } else {
+            r#""black""#
+        };
+        let text = format!(
+            r#"{{"layers": [{{"optical_thickness": 0.3,
+                 "scatterer": {{"rayleigh": {{"albedo": 0.9}}}}}}],
+                "base": {base}, "solver": {{"streams": 4}}}}"#
+        );
+        let spec = crate::spec::parse(&text).unwrap();
+        Table::from_spec(&spec, PolarGrid::graded(7).unwrap()).unwrap()
+    }
+
+    #[test]
+    fn round_trip_f64_is_exact_and_f32_is_rounded() {
+        for mirror in [false, true] {
+            let t = small_table(mirror);
+            assert_eq!(t.wavelengths[0].specular.is_some(), mirror);
+            let back = from_bytes(&to_bytes(&t, DataType::F64).unwrap()).unwrap();
+            assert_eq!(back, t);
+            let back = from_bytes(&to_bytes(&t, DataType::F32).unwrap()).unwrap();
+            assert_eq!(back.grid, t.grid);
+            assert_eq!(back.metadata, t.metadata);
+            for (a, b) in back.wavelengths[0].f.iter().zip(&t.wavelengths[0].f) {
+                assert!((a - b).abs() <= 6e-8 * b.abs());
+            }
+        }
+    }
+
+    #[test]
+    fn header_layout_is_as_documented() {
+        let b = to_bytes(&small_table(false), DataType::F32).unwrap();
+        assert_eq!(&b[..8], b"PBRDFTAB");
+        assert_eq!(u32::from_le_bytes(b[8..12].try_into().unwrap()), 1);
+        assert_eq!(u32::from_le_bytes(b[12..16].try_into().unwrap()), 1);
+        let len = u64::from_le_bytes(b[16..24].try_into().unwrap()) as usize;
+        assert_eq!(len, b.len() - HEADER_LEN);
+        // The checksum is the SHA-256 of bytes 0..24 and the payload,
+        // computed here independently of `digest`.
+        let mut all = b[..24].to_vec();
+        all.extend_from_slice(&b[HEADER_LEN..]);
+        assert_eq!(Sha256::digest(&all)[..], b[24..56]);
+    }
+
+    fn message(b: &[u8]) -> String {
+        match from_bytes(b) {
+            Err(BrdfError::Format(m)) => m,
+            other => panic!("expected a format error, got {other:?}"),
+        }
+    }
+
+    #[test]
+    fn every_flipped_byte_is_rejected() {
+        let b = to_bytes(&small_table(true), DataType::F64).unwrap();
+        // Every header byte and a spread of payload bytes.
+        let positions: Vec<usize> = (0..HEADER_LEN)
+            .chain((HEADER_LEN..b.len()).step_by(97))
+            .chain([b.len() - 1])
+            .collect();
+        for &k in &positions {
+            let mut c = b.clone();
+            c[k] ^= 0x10;
+            let m = message(&c);
+            let expect = match k {
+                0..8 => "bad magic",
+                8..12 => "unsupported table format version",
+                12..16 => "unknown data type",
+                16..24 => "content",
+                _ => "checksum mismatch",
+            };
+            assert!(
+                m.contains(expect) || (k < 24 && m.contains("malformed")),
+                "byte {k}: {m}"
+            );
+        }
+    }
+
+    #[test]
+    fn truncation_and_wrong_magic_are_rejected() {
+        let b = to_bytes(&small_table(false), DataType::F64).unwrap();
+        for cut in [0, 5, 20, HEADER_LEN, HEADER_LEN + 10, b.len() - 1] {
+            let m = message(&b[..cut]);
+            assert!(
+                m.contains("truncated") || (cut < 8 && m.contains("bad magic")),
+                "cut at {cut}: {m}"
+            );
+        }
+        let mut c = b.clone();
+        c[..8].copy_from_slice(b"\x93NUMPY\x01\x00");
+        assert!(message(&c).contains("not a polbrdf table"));
+        let mut c = b.clone();
+        c.push(0);
+        assert!(message(&c).contains("after the announced end"));
+    }
+}

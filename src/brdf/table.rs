@@ -1,0 +1,688 @@
+//! BRDF tables: per wavelength the Fourier coefficients of the 4×4 Mueller
+//! BRDF on a polar grid, their interpolation, and point evaluation
+//! (docs/table-format.md).
+//!
+//! **Stored quantity.** For azimuth order `m`, outgoing node `o` and
+//! incident node `i`: `f^m(μ_o, μ_i) = ρ^m(μ_o, μ_i) / μ_i`, with `ρ^m` the
+//! solver's response ([`solver::ReflectionFourier::rho`]): all `ns × ns`
+//! elements of the "S1" set of conventions §7, so that
+//!
+//! ```text
+//! f(μ_o, μ_i, Δφ) = Σ_m (2 − δ_m0)/(2π) [bd(f^m) cos mΔφ + od(f^m) sin mΔφ]      (T1)
+//! ```
+//!
+//! (`bd` keeps the IQ←IQ and UV←UV blocks, `od` the UV←IQ block with `+` and
+//! the IQ←UV block with `−`), `Δφ = Δφ_prop = φ_o − φ_i − 180°`.
+//!
+//! **Interpolation.** Between nodes the smoother product
+//! `g^m = (μ_o + μ_i) f^m` (T2) is interpolated by the tensor product of the
+//! same 1-D Lagrange scheme on both axes ([`PolarGrid::stencil`]) and divided
+//! back by `(μ_o + μ_i)` at the evaluation point; single scattering gives
+//! `g = ω P (1 − e^{−τ(1/μ_o + 1/μ_i)})/(4π)`, free of the `1/(μ_o + μ_i)`
+//! divergence at the horizon. Then (T1) is summed exactly at `Δφ`. Between
+//! wavelengths the Mueller matrices are interpolated linearly.
+//!
+//! **Specular term** (conventions §6, mirror bases only): per incident node
+//! `S(μ_i) = e^{−2τ/μ_i} M_F(μ_i)`, interpolated with the same 1-D scheme.
+
+use super::BrdfError;
+use super::angles::{self, Vec3, dphi_prop_rad, mu_of_theta_deg};
+use super::grid::{PolarGrid, STENCIL, Stencil};
+use crate::physics::stokes::{Mueller, mul, rotation};
+use crate::solver::{self, Base};
+use crate::spec::{self, Spec};
+use serde::{Deserialize, Serialize};
+use std::f64::consts::PI;
+use std::time::Instant;
+
+/// A direction pair in the graphics convention (degrees; both directions
+/// point away from the surface, conventions §5). The field names are those
+/// of `polbrdf solve --points`.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Directions {
+    /// Incident polar angle, `[0, 90]`.
+    pub theta_i_deg: f64,
+    /// Incident azimuth.
+    pub phi_i_deg: f64,
+    /// Outgoing polar angle, `[0, 90]`.
+    pub theta_o_deg: f64,
+    /// Outgoing azimuth.
+    pub phi_o_deg: f64,
+}
+
+impl Directions {
+    /// Check the ranges of `polbrdf solve --points` (θ in `[0, 90]`, φ in
+    /// `[−360, 360]`, finite).
+    pub fn validate(&self) -> Result<(), BrdfError> {
+        let check = |what: &str, v: f64, lo: f64, hi: f64| {
+            if v.is_finite() && (lo..=hi).contains(&v) {
+                Ok(())
+            } else {
+                Err(BrdfError::Query(format!(
+                    "{what} = {v} is outside [{lo}, {hi}]"
+                )))
+            }
+        };
+        check("theta_i_deg", self.theta_i_deg, 0.0, 90.0)?;
+        check("theta_o_deg", self.theta_o_deg, 0.0, 90.0)?;
+        check("phi_i_deg", self.phi_i_deg, -360.0, 360.0)?;
+        check("phi_o_deg", self.phi_o_deg, -360.0, 360.0)
+    }
+}
+
+/// Angular tolerance (radians) within which an outgoing direction "is" the
+/// mirror direction of the incident one, so that the specular term is
+/// reported (docs/table-format.md): far above the rounding of degrees to
+/// unit vectors (~1e-16 rad), far below any physical resolution.
+pub const MIRROR_TOLERANCE_RAD: f64 = 1e-6;
+
+/// Which quantity is interpolated in the polar cosines.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Interpolant {
+    /// `g^m = (μ_o + μ_i) f^m` (T2), the default.
+    SumOfCosines,
+    /// `f^m` itself (for comparison only: worse near the horizon).
+    Plain,
+}
+
+/// One wavelength of a table.
+#[derive(Clone, Debug, PartialEq)]
+pub struct WavelengthTable {
+    /// Vacuum wavelength (nm); `None` for a wavelength-free spec.
+    pub wavelength_nm: Option<f64>,
+    /// Stokes components per direction (4 polarized, 1 scalar).
+    pub ns: usize,
+    /// Number of polar nodes `N`.
+    pub nodes: usize,
+    /// Number of Fourier orders `M` (`m = 0..M`).
+    pub orders: usize,
+    /// `f^m(μ_o, μ_i)` (1/sr), element `(p, q)` at
+    /// `(((m·N + o)·N + i)·ns + p)·ns + q`.
+    pub f: Vec<f64>,
+    /// `e^{−2τ/μ_i} M_F(μ_i)` per incident node (mirror bases), else `None`.
+    pub specular: Option<Vec<Mueller>>,
+    /// Solver wall time for this wavelength (ms).
+    pub wall_time_ms: f64,
+}
+
+/// Numerical settings of the solver, as recorded in the metadata.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SolverMeta {
+    /// Quadrature points per hemisphere.
+    pub streams: usize,
+    /// Vector or scalar RTE.
+    pub polarized: bool,
+    /// Thin start layer relative to the smallest quadrature cosine.
+    pub start_factor: f64,
+    /// Fourier series stopping tolerance.
+    pub fourier_tolerance: f64,
+    /// Highest order requested (`null`: all).
+    pub max_order: Option<usize>,
+}
+
+/// Per-wavelength metadata.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct WavelengthMeta {
+    /// Vacuum wavelength (nm), `null` for a wavelength-free spec.
+    pub wavelength_nm: Option<f64>,
+    /// Fourier orders stored.
+    pub fourier_orders: usize,
+    /// Solver wall time (ms).
+    pub wall_time_ms: f64,
+}
+
+/// The JSON metadata of a table file (docs/table-format.md).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Metadata {
+    /// `polbrdf <version>`.
+    pub generator: String,
+    /// The material spec the table was built from (docs/spec.md).
+    pub spec: serde_json::Value,
+    /// Placeholder until specs have a canonical hash.
+    pub spec_hash: String,
+    /// Solver settings.
+    pub solver: SolverMeta,
+    /// How the polar grid was made.
+    pub grid: String,
+    /// How the table is interpolated.
+    pub interpolation: String,
+    /// Frames and normalisation.
+    pub conventions: String,
+    /// Per wavelength: orders and timings.
+    pub wavelengths: Vec<WavelengthMeta>,
+}
+
+/// A BRDF table: metadata, the polar grid and one block per wavelength
+/// (increasing wavelength).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Table {
+    /// JSON metadata.
+    pub metadata: Metadata,
+    /// Polar nodes (incident and outgoing).
+    pub grid: PolarGrid,
+    /// Per wavelength, increasing.
+    pub wavelengths: Vec<WavelengthTable>,
+}
+
+/// Placeholder stored in [`Metadata::spec_hash`].
+pub const SPEC_HASH_PLACEHOLDER: &str = "placeholder: no canonical spec hash yet";
+
+/// Solve the spec once per wavelength at the grid cosines
+/// ([`solver::reflection`] with `mu_user` = the grid's `μ`) and keep
+/// `f^m = ρ^m/μ_i` (T1) and, for a mirror base, `e^{−2τ/μ} M_F(μ)` per node.
+pub fn build(spec: &Spec, grid: &PolarGrid) -> Result<Vec<WavelengthTable>, BrdfError> {
+    let mut out = Vec::new();
+    for wl in spec::wavelengths(spec) {
+        let problem = spec::problem(spec, wl)?;
+        let t0 = Instant::now();
+        let refl = solver::reflection(&problem, &grid.mu)?;
+        let ns = refl.ns;
+        let n = grid.len();
+        let orders = refl.rho.len();
+        let mut f = vec![0.0; orders * n * n * ns * ns];
+        for (m, rho) in refl.rho.iter().enumerate() {
+            for o in 0..n {
+                for i in 0..n {
+                    let inv = 1.0 / grid.mu[i];
+                    let base = ((m * n + o) * n + i) * ns * ns;
+                    for p in 0..ns {
+                        for q in 0..ns {
+                            f[base + p * ns + q] = rho[(o * ns + p, i * ns + q)] * inv;
+                        }
+                    }
+                }
+            }
+        }
+        let specular = match &problem.base {
+            Base::Mirror { mueller } => Some(
+                grid.mu
+                    .iter()
+                    .zip(&refl.direct)
+                    .map(|(&mu, &e)| scale(&mueller(mu), e * e))
+                    .collect(),
+            ),
+            _ => None,
+        };
+        out.push(WavelengthTable {
+            wavelength_nm: wl,
+            ns,
+            nodes: n,
+            orders,
+            f,
+            specular,
+            wall_time_ms: t0.elapsed().as_secs_f64() * 1e3,
+        });
+    }
+    Ok(out)
+}
+
+/// An `ns × ns` row-major block as a 4×4 matrix (zeros outside).
+fn unflatten(v: &[f64], ns: usize) -> Mueller {
+    let mut c = [[0.0; 4]; 4];
+    for (p, row) in c.iter_mut().enumerate().take(ns) {
+        row[..ns].copy_from_slice(&v[p * ns..p * ns + ns]);
+    }
+    c
+}
+
+fn scale(m: &Mueller, a: f64) -> Mueller {
+    m.map(|row| row.map(|x| a * x))
+}
+
+fn add_scaled(acc: &mut Mueller, m: &Mueller, a: f64) {
+    for (r, s) in acc.iter_mut().zip(m) {
+        for (x, y) in r.iter_mut().zip(s) {
+            *x += a * y;
+        }
+    }
+}
+
+/// The Fourier sum (T1) of per-order coefficients `c[m]` at `dphi_prop`
+/// (radians); scalar coefficients (`ns = 1`) fill `[0][0]` only.
+pub fn fourier_synthesis(c: &[Mueller], ns: usize, dphi_prop: f64) -> Mueller {
+    let mut f = [[0.0; 4]; 4];
+    for (m, cm) in c.iter().enumerate() {
+        let w = if m == 0 { 1.0 } else { 2.0 } / (2.0 * PI);
+        let (s, co) = (m as f64 * dphi_prop).sin_cos();
+        let (wc, ws) = (w * co, w * s);
+        for p in 0..ns {
+            for q in 0..ns {
+                let v = cm[p][q];
+                f[p][q] += match (p < 2, q < 2) {
+                    (true, true) | (false, false) => v * wc,
+                    (false, true) => v * ws,
+                    (true, false) => -v * ws,
+                };
+            }
+        }
+    }
+    f
+}
+
+impl WavelengthTable {
+    /// Offset of the `ns × ns` block `f^m(μ_o, μ_i)` in [`WavelengthTable::f`].
+    pub fn offset(&self, m: usize, o: usize, i: usize) -> usize {
+        ((m * self.nodes + o) * self.nodes + i) * self.ns * self.ns
+    }
+
+    /// The stored coefficient `f^m` at nodes `(o, i)` as a 4×4 matrix.
+    pub fn node(&self, m: usize, o: usize, i: usize) -> Mueller {
+        let ns = self.ns;
+        let b = self.offset(m, o, i);
+        unflatten(&self.f[b..b + ns * ns], ns)
+    }
+
+    /// Interpolated `f^m(μ_o, μ_i)`, `m = 0..M`, at the polar angles
+    /// `theta_o_deg`, `theta_i_deg` (T2).
+    pub fn coefficients(
+        &self,
+        grid: &PolarGrid,
+        theta_o_deg: f64,
+        theta_i_deg: f64,
+    ) -> Vec<Mueller> {
+        self.coefficients_with(
+            grid,
+            theta_o_deg,
+            theta_i_deg,
+            Interpolant::SumOfCosines,
+            STENCIL,
+        )
+    }
+
+    /// [`WavelengthTable::coefficients`] with a chosen interpolant and
+    /// stencil size (for measurements; docs/table-format.md).
+    pub fn coefficients_with(
+        &self,
+        grid: &PolarGrid,
+        theta_o_deg: f64,
+        theta_i_deg: f64,
+        what: Interpolant,
+        stencil: usize,
+    ) -> Vec<Mueller> {
+        let so = grid.stencil_of_size(theta_o_deg, stencil);
+        let si = grid.stencil_of_size(theta_i_deg, stencil);
+        let (mu_o, mu_i) = (mu_of_theta_deg(theta_o_deg), mu_of_theta_deg(theta_i_deg));
+        self.combine(grid, &so, &si, mu_o + mu_i, what)
+    }
+
+    fn combine(
+        &self,
+        grid: &PolarGrid,
+        so: &Stencil,
+        si: &Stencil,
+        mu_sum: f64,
+        what: Interpolant,
+    ) -> Vec<Mueller> {
+        let ns2 = self.ns * self.ns;
+        // Tensor-product weights, with (μ_a + μ_b)/(μ_o + μ_i) for (T2).
+        let mut weights = Vec::with_capacity(so.len * si.len);
+        for a in 0..so.len {
+            for b in 0..si.len {
+                let (o, i) = (so.start + a, si.start + b);
+                let w = so.w[a] * si.w[b];
+                if w == 0.0 {
+                    continue;
+                }
+                let w = match what {
+                    Interpolant::SumOfCosines => w * (grid.mu[o] + grid.mu[i]) / mu_sum,
+                    Interpolant::Plain => w,
+                };
+                weights.push((o, i, w));
+            }
+        }
+        (0..self.orders)
+            .map(|m| {
+                let mut acc = [0.0; 16];
+                for &(o, i, w) in &weights {
+                    let b = self.offset(m, o, i);
+                    for (x, y) in acc.iter_mut().zip(&self.f[b..b + ns2]) {
+                        *x += w * y;
+                    }
+                }
+                unflatten(&acc, self.ns)
+            })
+            .collect()
+    }
+
+    /// The diffuse Mueller BRDF (1/sr, conventions §6) at graphics polar
+    /// angles and propagation azimuth difference `dphi_prop` (radians).
+    pub fn eval(
+        &self,
+        grid: &PolarGrid,
+        theta_i_deg: f64,
+        theta_o_deg: f64,
+        dphi_prop: f64,
+    ) -> Mueller {
+        fourier_synthesis(
+            &self.coefficients(grid, theta_o_deg, theta_i_deg),
+            self.ns,
+            dphi_prop,
+        )
+    }
+
+    /// Interpolated specular matrix `e^{−2τ/μ_i} M_F(μ_i)` (conventions §6)
+    /// in the meridian frames of the incident and the mirror-reflected ray;
+    /// `None` unless the base is a mirror.
+    pub fn specular_at(&self, grid: &PolarGrid, theta_i_deg: f64) -> Option<Mueller> {
+        let spec = self.specular.as_ref()?;
+        let st = grid.stencil(theta_i_deg);
+        let mut s = [[0.0; 4]; 4];
+        for k in 0..st.len {
+            add_scaled(&mut s, &spec[st.start + k], st.w[k]);
+        }
+        Some(s)
+    }
+}
+
+impl Table {
+    /// Build a table (one [`solver::reflection`] per wavelength, [`build`])
+    /// with its metadata.
+    pub fn from_spec(spec: &Spec, grid: PolarGrid) -> Result<Self, BrdfError> {
+        let wavelengths = build(spec, &grid)?;
+        Self::new(spec, grid, wavelengths)
+    }
+
+    /// Wrap built wavelength blocks with metadata (sorted by wavelength).
+    pub fn new(
+        spec: &Spec,
+        grid: PolarGrid,
+        mut wavelengths: Vec<WavelengthTable>,
+    ) -> Result<Self, BrdfError> {
+        wavelengths.sort_by(|a, b| {
+            a.wavelength_nm
+                .unwrap_or(0.0)
+                .total_cmp(&b.wavelength_nm.unwrap_or(0.0))
+        });
+        if wavelengths
+            .windows(2)
+            .any(|w| w[0].wavelength_nm == w[1].wavelength_nm)
+        {
+            return Err(BrdfError::Query("a wavelength is listed twice".into()));
+        }
+        // The settings `spec::problem` derives (the first wavelength's).
+        let first = spec::wavelengths(spec).into_iter().next().flatten();
+        let settings = spec::problem(spec, first)?.settings;
+        let metadata = Metadata {
+            generator: format!("polbrdf {}", env!("CARGO_PKG_VERSION")),
+            spec: serde_json::to_value(spec).map_err(|e| BrdfError::Format(e.to_string()))?,
+            spec_hash: SPEC_HASH_PLACEHOLDER.into(),
+            solver: SolverMeta {
+                streams: settings.streams,
+                polarized: settings.polarized,
+                start_factor: settings.start_factor,
+                fourier_tolerance: settings.fourier_tolerance,
+                max_order: settings.max_order,
+            },
+            grid: grid_description(&grid),
+            interpolation: INTERPOLATION.into(),
+            conventions: CONVENTIONS.into(),
+            wavelengths: wavelengths
+                .iter()
+                .map(|w| WavelengthMeta {
+                    wavelength_nm: w.wavelength_nm,
+                    fourier_orders: w.orders,
+                    wall_time_ms: w.wall_time_ms,
+                })
+                .collect(),
+        };
+        Ok(Self {
+            metadata,
+            grid,
+            wavelengths,
+        })
+    }
+
+    /// Wavelength blocks and linear weights for `wavelength_nm`
+    /// (docs/table-format.md): `None` is allowed for a one-wavelength table;
+    /// a wavelength outside the table's range is an error.
+    pub fn wavelength_weights(
+        &self,
+        wavelength_nm: Option<f64>,
+    ) -> Result<Vec<(usize, f64)>, BrdfError> {
+        let w = &self.wavelengths;
+        let Some(wl) = wavelength_nm else {
+            return if w.len() == 1 {
+                Ok(vec![(0, 1.0)])
+            } else {
+                Err(BrdfError::Query(format!(
+                    "the table has {} wavelengths ({}); give one",
+                    w.len(),
+                    self.wavelength_list()
+                )))
+            };
+        };
+        if !wl.is_finite() {
+            return Err(BrdfError::Query(format!("wavelength {wl} nm")));
+        }
+        let known: Vec<f64> = w.iter().filter_map(|x| x.wavelength_nm).collect();
+        if known.len() != w.len() {
+            return Err(BrdfError::Query(
+                "the table is wavelength-free; give no wavelength".into(),
+            ));
+        }
+        let tol = 1e-9 * wl.abs().max(1.0);
+        if let Some(k) = known.iter().position(|&x| (x - wl).abs() <= tol) {
+            return Ok(vec![(k, 1.0)]);
+        }
+        for k in 0..known.len().saturating_sub(1) {
+            let (a, b) = (known[k], known[k + 1]);
+            if wl > a && wl < b {
+                let t = (wl - a) / (b - a);
+                return Ok(vec![(k, 1.0 - t), (k + 1, t)]);
+            }
+        }
+        Err(BrdfError::Query(format!(
+            "wavelength {wl} nm is outside the table's range ({})",
+            self.wavelength_list()
+        )))
+    }
+
+    fn wavelength_list(&self) -> String {
+        self.wavelengths
+            .iter()
+            .map(|w| w.wavelength_nm.map_or("none".into(), |x| format!("{x} nm")))
+            .collect::<Vec<_>>()
+            .join(", ")
+    }
+
+    /// The diffuse Mueller BRDF (1/sr) at a direction pair (graphics
+    /// convention, degrees) in the meridian frames of conventions §5
+    /// (incident ray `k = −ω_i`, outgoing `k = ω_o`): interpolation in the
+    /// polar cosines (T2), exact Fourier sum (T1) at
+    /// `Δφ_prop = φ_o − φ_i − 180°`, linear in wavelength.
+    pub fn eval(&self, d: &Directions, wavelength_nm: Option<f64>) -> Result<Mueller, BrdfError> {
+        d.validate()?;
+        let dphi = dphi_prop_rad(d.phi_i_deg, d.phi_o_deg);
+        let mut f = [[0.0; 4]; 4];
+        for (k, w) in self.wavelength_weights(wavelength_nm)? {
+            let m = self.wavelengths[k].eval(&self.grid, d.theta_i_deg, d.theta_o_deg, dphi);
+            add_scaled(&mut f, &m, w);
+        }
+        Ok(f)
+    }
+
+    /// The specular matrix `S` (conventions §6: `∫ L_out dΩ = S F_beam`
+    /// around the mirror direction) when the base is a mirror **and** `ω_o`
+    /// is the mirror direction `(θ_i, φ_i + 180°)` of `ω_i` within
+    /// [`MIRROR_TOLERANCE_RAD`]; else `None`. In the meridian frames of the
+    /// query: at normal incidence the reflected frame at `φ_o` is turned by
+    /// `σ = φ_o − φ_i − 180°` from the mirror frame, `S' = L(σ) S`.
+    pub fn specular(
+        &self,
+        d: &Directions,
+        wavelength_nm: Option<f64>,
+    ) -> Result<Option<Mueller>, BrdfError> {
+        d.validate()?;
+        let weights = self.wavelength_weights(wavelength_nm)?;
+        if self.wavelengths.iter().all(|w| w.specular.is_none()) {
+            return Ok(None);
+        }
+        if !is_mirror_pair(d) {
+            return Ok(None);
+        }
+        let mut s = [[0.0; 4]; 4];
+        for (k, w) in weights {
+            if let Some(m) = self.wavelengths[k].specular_at(&self.grid, d.theta_i_deg) {
+                add_scaled(&mut s, &m, w);
+            }
+        }
+        let sigma = dphi_prop_rad(d.phi_i_deg, d.phi_o_deg);
+        Ok(Some(mul(&rotation(sigma), &s)))
+    }
+
+    /// Total number of stored coefficients.
+    pub fn values(&self) -> usize {
+        self.wavelengths.iter().map(|w| w.f.len()).sum()
+    }
+}
+
+/// Is `ω_o` the mirror direction of `ω_i` (within [`MIRROR_TOLERANCE_RAD`])?
+pub fn is_mirror_pair(d: &Directions) -> bool {
+    let wi = angles::direction(d.theta_i_deg, d.phi_i_deg);
+    let wo = angles::direction(d.theta_o_deg, d.phi_o_deg);
+    let mirror: Vec3 = [-wi[0], -wi[1], wi[2]];
+    angles::angle_between(wo, mirror) <= MIRROR_TOLERANCE_RAD
+}
+
+fn grid_description(grid: &PolarGrid) -> String {
+    let uniform_s = grid
+        .s
+        .iter()
+        .enumerate()
+        .all(|(k, &s)| (s - k as f64 / (grid.len() - 1) as f64).abs() < 1e-12);
+    if uniform_s {
+        format!(
+            "{} polar nodes theta = 90 deg * sin(pi k / (2 ({} - 1))), k = 0..{}, shared by incident and outgoing directions; theta = 90 deg evaluated at mu = 1e-6",
+            grid.len(),
+            grid.len(),
+            grid.len()
+        )
+    } else {
+        format!(
+            "{} polar nodes (listed), shared by incident and outgoing directions",
+            grid.len()
+        )
+    }
+}
+
+const INTERPOLATION: &str = "polar: tensor-product Lagrange interpolation of degree 5 (6 nearest nodes) in s = (2/pi) asin(theta / 90 deg) of g^m = (mu_o + mu_i) f^m, divided by (mu_o + mu_i); azimuth: exact Fourier sum at dphi_prop = phi_o - phi_i - 180 deg; wavelength: linear";
+
+const CONVENTIONS: &str = "docs/conventions.md: graphics directions (sec. 5), Mueller BRDF in 1/sr in the meridian frames of the incident ray k = -w_i and the outgoing ray k = w_o (sec. 5, 6), f^m = rho^m / mu_i of the S1 Fourier set (sec. 7)";
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn table(base: &str) -> Table {
+        let text = format!(
+            r#"{{"layers": [{{"optical_thickness": 0.4,
+                 "scatterer": {{"rayleigh": {{"albedo": 0.95}}}}}}],
+                "base": {base}, "solver": {{"streams": 4}}}}"#
+        );
+        let spec = crate::spec::parse(&text).unwrap();
+        Table::from_spec(&spec, PolarGrid::graded(8).unwrap()).unwrap()
+    }
+
+    fn d(ti: f64, pi: f64, to: f64, po: f64) -> Directions {
+        Directions {
+            theta_i_deg: ti,
+            phi_i_deg: pi,
+            theta_o_deg: to,
+            phi_o_deg: po,
+        }
+    }
+
+    /// Two blocks at 500 and 600 nm, the second twice the first: the BRDF at
+    /// 575 nm is 1.75 times the first (linear in wavelength); outside the
+    /// range and without a wavelength it is an error.
+    #[test]
+    fn wavelengths_are_interpolated_linearly() {
+        let mut t = table(r#""black""#);
+        let mut a = t.wavelengths[0].clone();
+        a.wavelength_nm = Some(500.0);
+        let mut b = a.clone();
+        b.wavelength_nm = Some(600.0);
+        b.f.iter_mut().for_each(|x| *x *= 2.0);
+        t.wavelengths = vec![a, b];
+        let q = d(20.0, 0.0, 50.0, 120.0);
+        let f0 = t.eval(&q, Some(500.0)).unwrap();
+        let f = t.eval(&q, Some(575.0)).unwrap();
+        for i in 0..4 {
+            for j in 0..4 {
+                assert!((f[i][j] - 1.75 * f0[i][j]).abs() <= 1e-14 * f0[0][0]);
+            }
+        }
+        assert!(t.eval(&q, Some(650.0)).is_err());
+        assert!(t.eval(&q, None).is_err());
+        assert!(t.eval(&d(20.0, 0.0, 95.0, 0.0), Some(550.0)).is_err());
+    }
+
+    /// The specular term is reported for mirror pairs only, and at normal
+    /// incidence in the query's frames: `L(φ_o − φ_i − 180°) S`.
+    #[test]
+    fn specular_only_for_mirror_pairs() {
+        let t = table(r#"{"fresnel": {"material": {"n": 1.5, "k": 0.0}}}"#);
+        let s = t
+            .specular(&d(30.0, 10.0, 30.0, 190.0), None)
+            .unwrap()
+            .unwrap();
+        let direct = t.wavelengths[0].specular_at(&t.grid, 30.0).unwrap();
+        assert!(
+            s.iter()
+                .flatten()
+                .zip(direct.iter().flatten())
+                .all(|(a, b)| (a - b).abs() < 1e-15)
+        );
+        assert!(
+            t.specular(&d(30.0, 10.0, 30.0, 190.01), None)
+                .unwrap()
+                .is_none()
+        );
+        assert!(
+            t.specular(&d(30.0, 10.0, 31.0, 190.0), None)
+                .unwrap()
+                .is_none()
+        );
+        // Normal incidence: every φ_o is the mirror direction.
+        let s0 = t.specular(&d(0.0, 0.0, 0.0, 180.0), None).unwrap().unwrap();
+        let s1 = t
+            .specular(&d(0.0, 0.0, 0.0, 180.0 + 35.0), None)
+            .unwrap()
+            .unwrap();
+        let expect = mul(&rotation(35f64.to_radians()), &s0);
+        for i in 0..4 {
+            for j in 0..4 {
+                assert!((s1[i][j] - expect[i][j]).abs() < 1e-15);
+            }
+        }
+        // No specular term over a black base.
+        let b = table(r#""black""#);
+        assert!(
+            b.specular(&d(30.0, 10.0, 30.0, 190.0), None)
+                .unwrap()
+                .is_none()
+        );
+    }
+
+    /// At normal incidence the meridian frame of the incident ray is the
+    /// `θ → 0` limit at `φ_i` (conventions §5): turning `φ_i` by `α` at
+    /// fixed `ω_o` is the frame rotation `L(−α)` of the incident Stokes
+    /// vector (the frame `(cos α, sin α, 0)` is at `σ = −α` from `x` towards
+    /// `y = −ẑ × x`), so `f(φ_i = α) = f(φ_i = 0) L(α)`.
+    #[test]
+    fn normal_incidence_frames_are_continuous() {
+        let t = table(r#"{"lambertian": {"albedo": 0.3}}"#);
+        let alpha = 0.7f64;
+        let f0 = t.eval(&d(0.0, 0.0, 40.0, 100.0), None).unwrap();
+        let fa = t
+            .eval(&d(0.0, alpha.to_degrees(), 40.0, 100.0), None)
+            .unwrap();
+        let expect = mul(&f0, &rotation(alpha));
+        for i in 0..4 {
+            for j in 0..4 {
+                assert!((fa[i][j] - expect[i][j]).abs() < 1e-12 * f0[0][0], "{i}{j}");
+            }
+        }
+    }
+}

@@ -1,0 +1,150 @@
+//! `polbrdf export TABLE --format {npy,json,csv} -o FILE` and the table
+//! writer behind `polbrdf solve SPEC --table OUT` (docs/table-format.md).
+
+use crate::brdf::export::{self, DenseGrid, NpyType};
+use crate::brdf::format::{self, DataType};
+use crate::brdf::{Directions, PolarGrid, Table};
+use crate::spec;
+use clap::{Args, ValueEnum};
+use serde::Deserialize;
+use serde_json::{Value, json};
+use sha2::{Digest, Sha256};
+
+/// Export formats.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum ExportFormat {
+    /// Dense (W, Ti, To, P, 4, 4) array on the seed's 51 x 51 x 61 grid.
+    Npy,
+    /// Mueller matrices at the direction pairs of --points.
+    Json,
+    /// The plane of incidence at one incident angle (--theta-i-deg).
+    Csv,
+}
+
+/// Element type of the .npy export.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum Dtype {
+    /// float32 (`<f4`).
+    F32,
+    /// float64 (`<f8`).
+    F64,
+}
+
+#[derive(Debug, Args)]
+pub struct ExportArgs {
+    /// A table written by `polbrdf solve SPEC --table OUT`.
+    pub table: String,
+    /// Output format.
+    #[arg(long, value_enum)]
+    pub format: ExportFormat,
+    /// Output file.
+    #[arg(short = 'o', long = "output")]
+    pub output: String,
+    /// Direction pairs for --format json: {"points": [{"theta_i_deg", "phi_i_deg", "theta_o_deg", "phi_o_deg"}]}.
+    #[arg(long)]
+    pub points: Option<String>,
+    /// Incident polar angle (deg) of the --format csv slice (plane of incidence, phi_i = 0).
+    #[arg(long)]
+    pub theta_i_deg: Option<f64>,
+    /// Element type of --format npy.
+    #[arg(long, value_enum, default_value = "f32")]
+    pub dtype: Dtype,
+    /// Only this wavelength (nm) for --format json (default: every wavelength of the table).
+    #[arg(long)]
+    pub wavelength_nm: Option<f64>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct PointsFile {
+    points: Vec<Directions>,
+}
+
+fn write(path: &str, bytes: &[u8]) -> Result<(), String> {
+    std::fs::write(path, bytes).map_err(|e| format!("{path}: {e}"))
+}
+
+fn read_points(path: &str) -> Result<Vec<Directions>, String> {
+    let text = std::fs::read_to_string(path).map_err(|e| format!("{path}: {e}"))?;
+    let de = &mut serde_json::Deserializer::from_str(&text);
+    let p: PointsFile = serde_path_to_error::deserialize(de)
+        .map_err(|e| format!("{path}: {}: {}", e.path(), e.inner()))?;
+    for (i, d) in p.points.iter().enumerate() {
+        d.validate()
+            .map_err(|e| format!("{path}: points[{i}].{e}"))?;
+    }
+    Ok(p.points)
+}
+
+/// Run `export`; the summary JSON is printed by the caller.
+pub fn run(a: &ExportArgs) -> Result<Value, String> {
+    let table = format::read_file(&a.table).map_err(|e| e.to_string())?;
+    match a.format {
+        ExportFormat::Npy => {
+            if a.points.is_some() || a.theta_i_deg.is_some() || a.wavelength_nm.is_some() {
+                return Err("--format npy exports the whole table: --points, --theta-i-deg and --wavelength-nm do not apply".into());
+            }
+            let grid = DenseGrid::default();
+            let d = export::dense(&table, &grid);
+            let ty = match a.dtype {
+                Dtype::F32 => NpyType::F32,
+                Dtype::F64 => NpyType::F64,
+            };
+            let bytes = export::npy_bytes(&d.shape(), &d.data, ty).map_err(|e| e.to_string())?;
+            write(&a.output, &bytes)?;
+            Ok(json!({
+                "file": a.output, "format": "npy", "shape": d.shape(),
+                "dtype": match ty { NpyType::F32 => "<f4", NpyType::F64 => "<f8" },
+                "axes": {
+                    "wavelength_nm": d.wavelength_nm,
+                    "theta_i_deg": grid.theta_i_deg,
+                    "theta_o_deg": grid.theta_o_deg,
+                    "phi_deg": grid.phi_deg,
+                    "phi_note": "phi = phi_o - phi_i (graphics convention, phi_i = 0; 180 = mirror side)",
+                },
+                "frames": export::FRAMES, "units": "1/sr",
+            }))
+        }
+        ExportFormat::Json => {
+            let path = a
+                .points
+                .as_deref()
+                .ok_or("--format json needs --points POINTS.json")?;
+            let points = read_points(path)?;
+            let v =
+                export::points_json(&table, &points, a.wavelength_nm).map_err(|e| e.to_string())?;
+            let text = serde_json::to_string_pretty(&v).expect("JSON");
+            write(&a.output, text.as_bytes())?;
+            Ok(json!({"file": a.output, "format": "json", "points": points.len()}))
+        }
+        ExportFormat::Csv => {
+            let t = a
+                .theta_i_deg
+                .ok_or("--format csv needs --theta-i-deg DEG")?;
+            let text = export::csv_slice(&table, t).map_err(|e| e.to_string())?;
+            write(&a.output, text.as_bytes())?;
+            Ok(json!({
+                "file": a.output, "format": "csv", "rows": text.lines().count() - 1,
+                "slice": "plane of incidence, phi_i = 0; phi_o = 0 (theta_o_signed < 0) and 180 (> 0)",
+            }))
+        }
+    }
+}
+
+/// `polbrdf solve SPEC --table OUT`: build the table on the default polar
+/// grid (one solve per wavelength) and write it (f64 coefficients).
+pub fn write_table(spec_path: &str, out: &str) -> Result<Value, String> {
+    let text = std::fs::read_to_string(spec_path).map_err(|e| format!("{spec_path}: {e}"))?;
+    let spec = spec::parse(&text).map_err(|e| format!("{spec_path}: {e}"))?;
+    let table =
+        Table::from_spec(&spec, PolarGrid::default()).map_err(|e| format!("{spec_path}: {e}"))?;
+    format::write_file(&table, out, DataType::F64).map_err(|e| e.to_string())?;
+    let bytes = std::fs::read(out).map_err(|e| format!("{out}: {e}"))?;
+    Ok(json!({
+        "file": out,
+        "bytes": bytes.len(),
+        "sha256_of_file": Sha256::digest(&bytes).iter().map(|b| format!("{b:02x}")).collect::<String>(),
+        "polar_nodes": table.grid.len(),
+        "wavelengths": table.metadata.wavelengths,
+    }))
+}

@@ -106,11 +106,25 @@ pub struct WavelengthTable {
     pub wall_time_ms: f64,
 }
 
+/// The solver's error estimate (`solver::accuracy::ErrorEstimate`).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct EstimateMeta {
+    /// Estimated max |error of f11| relative to max f11.
+    pub max_err_f11: f64,
+    /// Streams of the three solves used (`N/4`, `N/2`, `N`).
+    pub streams: [usize; 3],
+    /// Observed contraction of successive differences.
+    pub contraction: f64,
+}
+
 /// Numerical settings of the solver, as recorded in the metadata.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct SolverMeta {
-    /// Quadrature points per hemisphere.
+    /// Quadrature points per hemisphere (the fixed or default count; with
+    /// a tolerance see the per-wavelength `streams`).
     pub streams: usize,
+    /// `solver.tolerance` of the spec, if any (streams chosen per wavelength).
+    pub tolerance: Option<f64>,
     /// Vector or scalar RTE.
     pub polarized: bool,
     /// Thin start layer relative to the smallest quadrature cosine.
@@ -130,6 +144,12 @@ pub struct WavelengthMeta {
     pub fourier_orders: usize,
     /// Solver wall time (ms).
     pub wall_time_ms: f64,
+    /// Quadrature streams of the solve.
+    pub streams: usize,
+    /// The solver's a-posteriori error estimate, when one was made (specs
+    /// with `solver.tolerance`, docs/spec.md).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub error_estimate: Option<EstimateMeta>,
 }
 
 /// The JSON metadata of a table file (docs/table-format.md).
@@ -169,14 +189,49 @@ pub struct Table {
 pub const SPEC_HASH_PLACEHOLDER: &str = "placeholder: no canonical spec hash yet";
 
 /// Solve the spec once per wavelength at the grid cosines
-/// ([`solver::reflection`] with `mu_user` = the grid's `μ`) and keep
-/// `f^m = ρ^m/μ_i` (T1) and, for a mirror base, `e^{−2τ/μ} M_F(μ)` per node.
+/// ([`solver::reflection`] with `mu_user` = the grid's `μ`; for a spec with
+/// `solver.tolerance` and no `solver.streams`,
+/// `solver::accuracy::reflection_to_tolerance`, as `polbrdf solve` does) and
+/// keep `f^m = ρ^m/μ_i` (T0) and, for a mirror base, `e^{−2τ/μ} M_F(μ)` per
+/// node.
 pub fn build(spec: &Spec, grid: &PolarGrid) -> Result<Vec<WavelengthTable>, BrdfError> {
+    Ok(build_with_streams(spec, grid)?
+        .into_iter()
+        .map(|(w, _, _)| w)
+        .collect())
+}
+
+/// [`build`], also returning per wavelength the streams used and the
+/// solver's error estimate (tolerance specs).
+fn build_with_streams(
+    spec: &Spec,
+    grid: &PolarGrid,
+) -> Result<Vec<(WavelengthTable, usize, Option<EstimateMeta>)>, BrdfError> {
     let mut out = Vec::new();
     for wl in spec::wavelengths(spec) {
         let problem = spec::problem(spec, wl)?;
         let t0 = Instant::now();
-        let refl = solver::reflection(&problem, &grid.mu)?;
+        let (refl, streams, error_estimate) = match spec::stream_policy(spec) {
+            spec::StreamPolicy::Fixed(_) => (
+                solver::reflection(&problem, &grid.mu)?,
+                problem.settings.streams,
+                None,
+            ),
+            spec::StreamPolicy::Tolerance(t) => {
+                let e = solver::accuracy::reflection_to_tolerance(
+                    &problem,
+                    &grid.mu,
+                    t,
+                    spec::MAX_STREAMS,
+                )?;
+                let est = EstimateMeta {
+                    max_err_f11: e.estimate.max_err_f11,
+                    streams: e.estimate.streams,
+                    contraction: e.estimate.contraction,
+                };
+                (e.reflection, est.streams[2], Some(est))
+            }
+        };
         let ns = refl.ns;
         let n = grid.len();
         let orders = refl.rho.len();
@@ -204,7 +259,7 @@ pub fn build(spec: &Spec, grid: &PolarGrid) -> Result<Vec<WavelengthTable>, Brdf
             ),
             _ => None,
         };
-        out.push(WavelengthTable {
+        let block = WavelengthTable {
             wavelength_nm: wl,
             ns,
             nodes: n,
@@ -212,7 +267,8 @@ pub fn build(spec: &Spec, grid: &PolarGrid) -> Result<Vec<WavelengthTable>, Brdf
             f,
             specular,
             wall_time_ms: t0.elapsed().as_secs_f64() * 1e3,
-        });
+        };
+        out.push((block, streams, error_estimate));
     }
     Ok(out)
 }
@@ -379,11 +435,25 @@ impl Table {
     /// Build a table (one [`solver::reflection`] per wavelength, [`build`])
     /// with its metadata.
     pub fn from_spec(spec: &Spec, grid: PolarGrid) -> Result<Self, BrdfError> {
-        let wavelengths = build(spec, &grid)?;
-        Self::new(spec, grid, wavelengths)
+        let built = build_with_streams(spec, &grid)?;
+        let extra: Vec<(Option<f64>, usize, Option<EstimateMeta>)> = built
+            .iter()
+            .map(|(w, n, e)| (w.wavelength_nm, *n, e.clone()))
+            .collect();
+        let mut table = Self::new(spec, grid, built.into_iter().map(|b| b.0).collect())?;
+        for m in &mut table.metadata.wavelengths {
+            if let Some((_, n, e)) = extra.iter().find(|x| x.0 == m.wavelength_nm) {
+                m.streams = *n;
+                m.error_estimate = e.clone();
+            }
+        }
+        Ok(table)
     }
 
-    /// Wrap built wavelength blocks with metadata (sorted by wavelength).
+    /// Wrap built wavelength blocks with metadata (sorted by wavelength); the
+    /// per-wavelength `streams` are the spec's fixed (or default) count and
+    /// no error estimate is recorded (callers that solved otherwise set
+    /// [`WavelengthMeta::streams`] and [`WavelengthMeta::error_estimate`]).
     pub fn new(
         spec: &Spec,
         grid: PolarGrid,
@@ -409,6 +479,10 @@ impl Table {
             spec_hash: SPEC_HASH_PLACEHOLDER.into(),
             solver: SolverMeta {
                 streams: settings.streams,
+                tolerance: match spec::stream_policy(spec) {
+                    spec::StreamPolicy::Tolerance(t) => Some(t),
+                    spec::StreamPolicy::Fixed(_) => None,
+                },
                 polarized: settings.polarized,
                 start_factor: settings.start_factor,
                 fourier_tolerance: settings.fourier_tolerance,
@@ -423,6 +497,8 @@ impl Table {
                     wavelength_nm: w.wavelength_nm,
                     fourier_orders: w.orders,
                     wall_time_ms: w.wall_time_ms,
+                    streams: settings.streams,
+                    error_estimate: None,
                 })
                 .collect(),
         };
@@ -616,6 +692,28 @@ mod tests {
         assert!(t.eval(&q, Some(650.0)).is_err());
         assert!(t.eval(&q, None).is_err());
         assert!(t.eval(&d(20.0, 0.0, 95.0, 0.0), Some(550.0)).is_err());
+    }
+
+    /// A spec with `solver.tolerance` (and no `solver.streams`) is solved
+    /// as `polbrdf solve` does it: the cheapest power-of-two streams meeting
+    /// the tolerance, recorded per wavelength with the estimate.
+    #[test]
+    fn tolerance_specs_record_streams_and_estimate() {
+        let spec = crate::spec::parse(
+            r#"{"layers": [{"optical_thickness": 0.4,
+                 "scatterer": {"rayleigh": {"albedo": 0.95}}}],
+                "solver": {"tolerance": 1e-3}}"#,
+        )
+        .unwrap();
+        let t = Table::from_spec(&spec, PolarGrid::graded(8).unwrap()).unwrap();
+        assert_eq!(t.metadata.solver.tolerance, Some(1e-3));
+        let w = &t.metadata.wavelengths[0];
+        let e = w.error_estimate.as_ref().expect("estimate");
+        assert_eq!(w.streams, e.streams[2]);
+        assert!(e.max_err_f11 <= 1e-3 || w.streams * 2 > crate::spec::MAX_STREAMS);
+        let fixed = table(r#""black""#);
+        assert_eq!(fixed.metadata.wavelengths[0].streams, 4);
+        assert!(fixed.metadata.wavelengths[0].error_estimate.is_none());
     }
 
     /// The specular term is reported for mirror pairs only, and at normal

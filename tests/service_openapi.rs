@@ -29,6 +29,7 @@ fn every_route_is_documented() {
         "/v1/brdfs",
         "/v1/brdfs/{id}",
         "/v1/brdfs/{id}/table",
+        "/v1/brdfs/{id}/eval",
         "/healthz",
         "/readyz",
         "/metrics",

@@ -13,7 +13,7 @@ async fn jobs_survive_a_crash_and_a_graceful_restart() {
     let dir = TempDir::new("restart");
     let data = dir.0.join("data");
     let c = client();
-    let slow = slow_spec(6, 0.7);
+    let slow = slow_spec(3, 0.7);
 
     // One worker: `slow` runs, TINY waits in the queue.
     let mut s = Server::start(&data, &["--workers", "1"], &[]);
@@ -36,7 +36,7 @@ async fn jobs_survive_a_crash_and_a_graceful_restart() {
     let s = Server::start(&data, &["--workers", "1"], &[]);
     let a = wait_done(&c, &s, &slow_id).await;
     let b = wait_done(&c, &s, &tiny_id).await;
-    assert_eq!(a["wall_time_ms"].as_array().unwrap().len(), 6);
+    assert_eq!(a["wall_time_ms"].as_array().unwrap().len(), 3);
     assert_eq!(b["progress"], 1.0);
     let log = s.log_text();
     assert!(log.contains("job re-queued at start"), "{log}");
@@ -49,7 +49,7 @@ async fn jobs_survive_a_crash_and_a_graceful_restart() {
         &["--workers", "1", "--shutdown-grace-secs", "0"],
         &[],
     );
-    let slow2 = slow_spec(6, 0.6);
+    let slow2 = slow_spec(3, 0.6);
     let (_, v, _) = post(&c, &s, &slow2).await;
     let slow2_id = v["id"].as_str().unwrap().to_string();
     wait_for(&c, &s, &slow2_id, Duration::from_secs(60), |v| {

@@ -373,7 +373,7 @@ pub const IMMUTABLE: &str = "public, max-age=31536000, immutable";
         ("If-None-Match" = Option<String>, Header, description = "ETag(s) the client holds"),
     ),
     responses(
-        (status = 200, description = "The result bytes (media type in Content-Type: application/vnd.polbrdf.fourier+json)",
+        (status = 200, description = "The BRDF table (docs/table-format.md), Content-Type application/vnd.polbrdf.table",
          headers(("ETag" = String, description = "\"<sha256 of the bytes>\""),
                  ("Cache-Control" = String, description = "public, max-age=31536000, immutable"))),
         (status = 304, description = "The client's copy is current",

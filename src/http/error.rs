@@ -17,6 +17,14 @@ pub enum ApiError {
     /// key, missing field, out of range): 422.
     #[error("{0}")]
     InvalidSpec(SpecError),
+    /// Invalid evaluation parameters (angles, wavelength, body): 422.
+    #[error("{path}: {message}")]
+    InvalidQuery {
+        /// The parameter or JSON path.
+        path: String,
+        /// What is allowed.
+        message: String,
+    },
     /// The spec is valid but exceeds a service cap: 422.
     #[error("{path}: {message}")]
     LimitExceeded {
@@ -96,6 +104,13 @@ impl ApiError {
             ApiError::InvalidSpec(e) => {
                 Problem::new("invalid-spec", "Invalid spec", 422, e.to_string()).at(e.path.clone())
             }
+            ApiError::InvalidQuery { path, message } => Problem::new(
+                "invalid-query",
+                "Invalid evaluation request",
+                422,
+                format!("{path}: {message}"),
+            )
+            .at(path.clone()),
             ApiError::LimitExceeded { path, message } => Problem::new(
                 "limit-exceeded",
                 "Spec exceeds a service limit",

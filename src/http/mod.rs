@@ -13,6 +13,7 @@
 pub mod brdfs;
 pub mod config;
 pub mod error;
+pub mod eval;
 pub mod ops;
 
 pub use config::{Config, Limits, LogFormat};
@@ -40,6 +41,8 @@ pub struct App {
     pub config: Config,
     /// The job queue (with the index, the blobs and the metrics).
     pub jobs: Arc<Jobs>,
+    /// Parsed tables of recent evaluations.
+    pub tables: eval::TableCache,
 }
 
 /// Handler state: a cheap clone of the shared [`App`].
@@ -82,6 +85,7 @@ pub fn routes() -> OpenApiRouter<AppState> {
         .routes(api!(brdfs::create_brdf))
         .routes(api!(brdfs::get_brdf))
         .routes(api!(brdfs::get_table))
+        .routes(api!(eval::get_eval, eval::post_eval))
         .routes(api!(ops::healthz))
         .routes(api!(ops::readyz))
         .routes(api!(ops::metrics))
@@ -219,6 +223,7 @@ pub async fn serve(
     let state = AppState(Arc::new(App {
         config,
         jobs: jobs.clone(),
+        tables: eval::TableCache::default(),
     }));
     let stopping = jobs.clone();
     axum::serve(listener, router(state))

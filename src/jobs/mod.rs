@@ -340,6 +340,8 @@ impl Jobs {
             match row.status {
                 Status::Done => {
                     let present = match (&row.digest, row.size) {
+                        // A result in an older format is stale: solve again.
+                        _ if row.media_type.as_deref() != Some(result::MEDIA_TYPE) => false,
                         (Some(d), Some(size)) => {
                             let (blobs, d) = (self.blobs.clone(), d.clone());
                             tokio::task::spawn_blocking(move || {
@@ -399,19 +401,23 @@ impl Jobs {
     }
 
     /// The verified bytes of a done row's result. `None` when the blob is
-    /// missing or corrupt: the job is then queued again (and the bytes are
-    /// never served).
+    /// missing or corrupt, or the result is in an older format than
+    /// [`result::MEDIA_TYPE`]: the job is then queued again (and the bytes
+    /// are never served).
     pub async fn result_bytes(self: &Arc<Self>, row: &JobRow) -> Result<Option<Vec<u8>>, JobError> {
-        let Some(digest) = row.digest.clone() else {
-            return Ok(None);
+        let bytes = match row.digest.clone() {
+            Some(digest) if row.media_type.as_deref() == Some(result::MEDIA_TYPE) => {
+                let blobs = self.blobs.clone();
+                tokio::task::spawn_blocking(move || blobs.get(&digest))
+                    .await
+                    .map_err(|e| JobError::Storage(e.to_string()))?
+                    .map_err(|e| JobError::Storage(e.to_string()))?
+            }
+            // No blob, or a result in an older format.
+            _ => None,
         };
-        let blobs = self.blobs.clone();
-        let bytes = tokio::task::spawn_blocking(move || blobs.get(&digest))
-            .await
-            .map_err(|e| JobError::Storage(e.to_string()))?
-            .map_err(|e| JobError::Storage(e.to_string()))?;
         if bytes.is_none() {
-            tracing::warn!(id = %row.id, "result blob missing or corrupt; solving again");
+            tracing::warn!(id = %row.id, "result blob missing, corrupt or stale; solving again");
             if let Ok(spec) = spec::parse(&row.spec) {
                 // Not a cache hit: `decide` sees the blob gone and enqueues.
                 match self.submit(&spec, &row.spec, &row.id).await {

@@ -1,0 +1,346 @@
+//! Point evaluation of a done job's BRDF table (`src/brdf`): one direction
+//! pair by query string (`GET`), many by body (`POST`).
+
+use super::AppState;
+use super::brdfs::IMMUTABLE;
+use super::error::ApiError;
+use crate::brdf::export::FRAMES;
+use crate::brdf::{BrdfError, Directions, Table, format};
+use crate::jobs::Problem;
+use crate::spec::canonical;
+use crate::storage::{JobRow, Status};
+use axum::Json;
+use axum::body::Bytes;
+use axum::extract::rejection::{BytesRejection, FailedToBufferBody, QueryRejection};
+use axum::extract::{Path, Query, State};
+use axum::http::{HeaderValue, header};
+use axum::response::{IntoResponse, Response};
+use serde::{Deserialize, Serialize};
+use std::collections::VecDeque;
+use std::sync::{Arc, Mutex};
+use utoipa::{IntoParams, ToSchema};
+
+/// Most direction pairs per `POST …/eval`.
+pub const MAX_EVAL_POINTS: usize = 100_000;
+
+/// Parsed tables kept in memory, by digest (most recently used last).
+#[derive(Debug, Default)]
+pub struct TableCache {
+    tables: Mutex<VecDeque<(String, Arc<Table>)>>,
+}
+
+/// Tables kept by [`TableCache`].
+const CACHED_TABLES: usize = 8;
+
+impl TableCache {
+    fn get(&self, digest: &str) -> Option<Arc<Table>> {
+        let mut q = self.tables.lock().expect("table cache");
+        let k = q.iter().position(|(d, _)| d == digest)?;
+        let e = q.remove(k).expect("entry");
+        let t = e.1.clone();
+        q.push_back(e);
+        Some(t)
+    }
+
+    fn put(&self, digest: String, table: Arc<Table>) {
+        let mut q = self.tables.lock().expect("table cache");
+        q.retain(|(d, _)| *d != digest);
+        q.push_back((digest, table));
+        while q.len() > CACHED_TABLES {
+            q.pop_front();
+        }
+    }
+}
+
+/// One direction pair (graphics convention, degrees; conventions §5) and
+/// an optional wavelength.
+#[derive(Clone, Debug, Deserialize, ToSchema, IntoParams)]
+#[serde(deny_unknown_fields)]
+#[into_params(parameter_in = Query)]
+pub struct EvalQuery {
+    /// Incident polar angle, `[0, 90]`.
+    pub theta_i_deg: f64,
+    /// Incident azimuth, `[-360, 360]`.
+    pub phi_i_deg: f64,
+    /// Outgoing polar angle, `[0, 90]`.
+    pub theta_o_deg: f64,
+    /// Outgoing azimuth, `[-360, 360]`.
+    pub phi_o_deg: f64,
+    /// Vacuum wavelength (nm) inside the table's range (linear between
+    /// its wavelengths); may be omitted for a one-wavelength table.
+    pub wavelength_nm: Option<f64>,
+}
+
+/// A direction pair of a `POST …/eval` body.
+#[derive(Clone, Debug, Deserialize, Serialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct EvalPoint {
+    /// Incident polar angle, `[0, 90]`.
+    pub theta_i_deg: f64,
+    /// Incident azimuth, `[-360, 360]`.
+    pub phi_i_deg: f64,
+    /// Outgoing polar angle, `[0, 90]`.
+    pub theta_o_deg: f64,
+    /// Outgoing azimuth, `[-360, 360]`.
+    pub phi_o_deg: f64,
+}
+
+/// Body of `POST …/eval`.
+#[derive(Clone, Debug, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct EvalRequest {
+    /// Direction pairs (at most 100000).
+    pub points: Vec<EvalPoint>,
+    /// Vacuum wavelength (nm); may be omitted for a one-wavelength table.
+    #[serde(default)]
+    pub wavelength_nm: Option<f64>,
+}
+
+/// The BRDF at one direction pair.
+#[derive(Clone, Debug, Serialize, ToSchema)]
+pub struct EvalValue {
+    /// Incident polar angle (deg).
+    pub theta_i_deg: f64,
+    /// Incident azimuth (deg).
+    pub phi_i_deg: f64,
+    /// Outgoing polar angle (deg).
+    pub theta_o_deg: f64,
+    /// Outgoing azimuth (deg).
+    pub phi_o_deg: f64,
+    /// Diffuse Mueller BRDF (1/sr), row = outgoing Stokes component.
+    pub mueller: [[f64; 4]; 4],
+    /// Specular matrix `S` (conventions §6) when the base is a mirror and
+    /// the pair is a mirror pair, else `null`.
+    pub specular: Option<[[f64; 4]; 4]>,
+}
+
+/// Answer of the eval endpoints.
+#[derive(Clone, Debug, Serialize, ToSchema)]
+pub struct EvalResponse {
+    /// Spec id.
+    pub id: String,
+    /// The wavelength evaluated (`null` for a wavelength-free table).
+    pub wavelength_nm: Option<f64>,
+    /// `1/sr`.
+    pub units: String,
+    /// The Stokes reference frames.
+    pub frames: String,
+    /// One entry per direction pair.
+    pub points: Vec<EvalValue>,
+}
+
+/// The parsed table of a done row (verified bytes, cached by digest).
+async fn table_of(state: &AppState, id: &str) -> Result<(JobRow, Arc<Table>), ApiError> {
+    if !canonical::is_id(id) {
+        return Err(ApiError::NotFound(id.to_string()));
+    }
+    let app = &state.0;
+    let row = app
+        .jobs
+        .index()
+        .get(id)
+        .await?
+        .ok_or_else(|| ApiError::NotFound(id.to_string()))?;
+    match row.status {
+        Status::Queued | Status::Running => {
+            return Err(ApiError::NotReady {
+                id: id.to_string(),
+                status: row.status.as_str(),
+            });
+        }
+        Status::Failed => {
+            let problem = row
+                .error
+                .as_deref()
+                .and_then(|e| serde_json::from_str(e).ok())
+                .unwrap_or_else(|| Problem::new("job-failed", "BRDF job failed", 409, "unknown"));
+            return Err(ApiError::JobFailed {
+                id: id.to_string(),
+                problem: Box::new(problem),
+            });
+        }
+        Status::Done => {}
+    }
+    let digest = row.digest.clone().unwrap_or_default();
+    if let Some(t) = app.tables.get(&digest) {
+        return Ok((row, t));
+    }
+    let Some(bytes) = app.jobs.result_bytes(&row).await? else {
+        return Err(ApiError::NotReady {
+            id: id.to_string(),
+            status: "being solved again (the stored result was missing or corrupt)",
+        });
+    };
+    let table = tokio::task::spawn_blocking(move || format::from_bytes(&bytes))
+        .await
+        .map_err(|e| ApiError::Internal(e.to_string()))?
+        .map_err(|e| ApiError::Internal(format!("stored table {digest}: {e}")))?;
+    let table = Arc::new(table);
+    app.tables.put(digest, table.clone());
+    Ok((row, table))
+}
+
+/// A query error of `brdf` as a 422 naming the field: the angle the
+/// message starts with (after `prefix`, e.g. `points[3].`), else the
+/// wavelength.
+fn query_error(e: BrdfError, prefix: &str) -> ApiError {
+    let message = e.to_string();
+    let path = message
+        .split(" = ")
+        .next()
+        .filter(|f| f.ends_with("_deg") && f.chars().all(|c| c.is_ascii_lowercase() || c == '_'))
+        .map_or_else(|| "wavelength_nm".to_string(), |f| format!("{prefix}{f}"));
+    ApiError::InvalidQuery { path, message }
+}
+
+fn evaluate(
+    table: &Table,
+    points: &[EvalPoint],
+    wavelength_nm: Option<f64>,
+    prefix: impl Fn(usize) -> String,
+) -> Result<Vec<EvalValue>, ApiError> {
+    let mut out = Vec::with_capacity(points.len());
+    for (k, p) in points.iter().enumerate() {
+        let d = Directions {
+            theta_i_deg: p.theta_i_deg,
+            phi_i_deg: p.phi_i_deg,
+            theta_o_deg: p.theta_o_deg,
+            phi_o_deg: p.phi_o_deg,
+        };
+        let mueller = table
+            .eval(&d, wavelength_nm)
+            .map_err(|e| query_error(e, &prefix(k)))?;
+        let specular = table
+            .specular(&d, wavelength_nm)
+            .map_err(|e| query_error(e, &prefix(k)))?;
+        out.push(EvalValue {
+            theta_i_deg: p.theta_i_deg,
+            phi_i_deg: p.phi_i_deg,
+            theta_o_deg: p.theta_o_deg,
+            phi_o_deg: p.phi_o_deg,
+            mueller,
+            specular,
+        });
+    }
+    Ok(out)
+}
+
+fn response(
+    id: String,
+    table: &Table,
+    wavelength_nm: Option<f64>,
+    points: Vec<EvalValue>,
+) -> EvalResponse {
+    EvalResponse {
+        id,
+        wavelength_nm: wavelength_nm.or_else(|| {
+            (table.wavelengths.len() == 1)
+                .then(|| table.wavelengths[0].wavelength_nm)
+                .flatten()
+        }),
+        units: "1/sr".into(),
+        frames: FRAMES.into(),
+        points,
+    }
+}
+
+/// The Mueller BRDF of a done job at one direction pair.
+///
+/// Interpolated from the stored table (docs/table-format.md): polar
+/// cosines by the table's scheme, exact Fourier sum in azimuth, linear in
+/// wavelength. Results never change for an id: cacheable as immutable.
+#[utoipa::path(
+    get,
+    path = "/v1/brdfs/{id}/eval",
+    tag = "brdfs",
+    params(("id" = String, Path, description = "Spec id"), EvalQuery),
+    responses(
+        (status = 200, description = "The BRDF at the pair (one entry in `points`)", body = EvalResponse),
+        (status = 404, description = "Unknown id", body = Problem, content_type = "application/problem+json"),
+        (status = 409, description = "Not done yet, or failed", body = Problem, content_type = "application/problem+json"),
+        (status = 422, description = "Angle or wavelength out of range; `path` names the parameter", body = Problem, content_type = "application/problem+json"),
+    ),
+    security((), ("bearer" = []))
+)]
+pub async fn get_eval(
+    State(state): State<AppState>,
+    Path(id): Path<String>,
+    query: Result<Query<EvalQuery>, QueryRejection>,
+) -> Result<Response, ApiError> {
+    let Query(q) = query.map_err(|e| ApiError::InvalidQuery {
+        path: "query".into(),
+        message: format!(
+            "{}; give theta_i_deg, phi_i_deg, theta_o_deg, phi_o_deg and optionally wavelength_nm",
+            e.body_text()
+        ),
+    })?;
+    let (_, table) = table_of(&state, &id).await?;
+    let p = EvalPoint {
+        theta_i_deg: q.theta_i_deg,
+        phi_i_deg: q.phi_i_deg,
+        theta_o_deg: q.theta_o_deg,
+        phi_o_deg: q.phi_o_deg,
+    };
+    let points = evaluate(&table, &[p], q.wavelength_nm, |_| String::new())?;
+    let mut res = Json(response(id, &table, q.wavelength_nm, points)).into_response();
+    res.headers_mut()
+        .insert(header::CACHE_CONTROL, HeaderValue::from_static(IMMUTABLE));
+    Ok(res)
+}
+
+/// The Mueller BRDF of a done job at many direction pairs.
+#[utoipa::path(
+    post,
+    path = "/v1/brdfs/{id}/eval",
+    tag = "brdfs",
+    params(("id" = String, Path, description = "Spec id")),
+    request_body(content = EvalRequest, content_type = "application/json"),
+    responses(
+        (status = 200, description = "The BRDF at every pair, in order", body = EvalResponse),
+        (status = 404, description = "Unknown id", body = Problem, content_type = "application/problem+json"),
+        (status = 409, description = "Not done yet, or failed", body = Problem, content_type = "application/problem+json"),
+        (status = 413, description = "Body over --max-body-bytes", body = Problem, content_type = "application/problem+json"),
+        (status = 422, description = "Malformed body, too many points, angle or wavelength out of range; `path` names the field", body = Problem, content_type = "application/problem+json"),
+    ),
+    security((), ("bearer" = []))
+)]
+pub async fn post_eval(
+    State(state): State<AppState>,
+    Path(id): Path<String>,
+    body: Result<Bytes, BytesRejection>,
+) -> Result<Response, ApiError> {
+    let body = body.map_err(|e| match e {
+        BytesRejection::FailedToBufferBody(FailedToBufferBody::LengthLimitError(_)) => {
+            ApiError::PayloadTooLarge {
+                limit: state.0.config.max_body_bytes,
+            }
+        }
+        other => ApiError::BadBody(other.body_text()),
+    })?;
+    let de = &mut serde_json::Deserializer::from_slice(&body);
+    let req: EvalRequest = serde_path_to_error::deserialize(de).map_err(|e| {
+        let path = e.path().to_string();
+        ApiError::InvalidQuery {
+            path: if path == "." { "$".into() } else { path },
+            message: e.inner().to_string(),
+        }
+    })?;
+    if req.points.len() > MAX_EVAL_POINTS {
+        return Err(ApiError::InvalidQuery {
+            path: "points".into(),
+            message: format!(
+                "{} points exceed the limit of {MAX_EVAL_POINTS} per request",
+                req.points.len()
+            ),
+        });
+    }
+    let (_, table) = table_of(&state, &id).await?;
+    let wl = req.wavelength_nm;
+    let t = table.clone();
+    let points = tokio::task::spawn_blocking(move || {
+        evaluate(&t, &req.points, wl, |k| format!("points[{k}]."))
+    })
+    .await
+    .map_err(|e| ApiError::Internal(e.to_string()))??;
+    Ok(Json(response(id, &table, wl, points)).into_response())
+}

@@ -34,7 +34,7 @@ pub struct ServeArgs {
     /// Largest request body in bytes; beyond it 413 [env POLBRDF_MAX_BODY_BYTES; default 1048576].
     #[arg(long)]
     pub max_body_bytes: Option<usize>,
-    /// Largest solver.streams (also for solver.tolerance) [env POLBRDF_MAX_STREAMS; default 128].
+    /// Largest explicit solver.streams [env POLBRDF_MAX_STREAMS; default 128].
     #[arg(long)]
     pub max_streams: Option<usize>,
     /// Most layers per spec [env POLBRDF_MAX_LAYERS; default 16].

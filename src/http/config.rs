@@ -51,7 +51,8 @@ pub struct Config {
 /// Caps on what one spec may ask for.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Limits {
-    /// `solver.streams` (and the streams a `solver.tolerance` may pick).
+    /// Explicit `solver.streams` (a `solver.tolerance` may pick up to the
+    /// spec's own limit, `spec::MAX_STREAMS`).
     pub max_streams: usize,
     /// Number of layers.
     pub max_layers: usize,

@@ -206,7 +206,6 @@ pub async fn serve(
             workers: config.workers,
             max_queue: config.max_queue,
             max_attempts: config.max_attempts,
-            max_streams: config.limits.max_streams,
         },
     )
     .await?;

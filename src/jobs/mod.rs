@@ -48,8 +48,6 @@ pub struct JobsConfig {
     pub max_queue: usize,
     /// Starts of one job before it is given up (crash-loop guard).
     pub max_attempts: i64,
-    /// Most streams a `solver.tolerance` may pick.
-    pub max_streams: usize,
 }
 
 /// Why a submission was not accepted.
@@ -437,7 +435,6 @@ impl Jobs {
         self.active.send_modify(|n| *n += 1);
         let blobs = self.blobs.clone();
         let stopping = self.stopping.clone();
-        let max_streams = self.config.max_streams;
         let solve_span = span.clone();
         self.pool.spawn(move || {
             let _entered = solve_span.enter();
@@ -448,7 +445,7 @@ impl Jobs {
             let _ = event_tx.send(Event::Started);
             let t0 = Instant::now();
             let solved = catch_unwind(AssertUnwindSafe(|| {
-                result::solve(&spec, max_streams, &mut |done, total, ms| {
+                result::solve(&spec, &mut |done, total, ms| {
                     tracing::debug!(done, total, ms, "wavelength solved");
                     let _ = event_tx.send(Event::Wavelength { done, total, ms });
                 })

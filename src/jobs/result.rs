@@ -53,12 +53,10 @@ pub struct SolveFailure {
 
 /// Solve every wavelength of a spec (one [`brdf::build`] per wavelength, so
 /// that progress can be reported); `on_wavelength(done, total, ms)` is
-/// called after each wavelength. `_max_streams` is reserved for capping the
-/// streams a `solver.tolerance` may pick (the table builder caps them at
-/// [`spec::MAX_STREAMS`]).
+/// called after each wavelength. A `solver.tolerance` may pick up to
+/// [`spec::MAX_STREAMS`] streams (the table builder's cap).
 pub fn solve(
     spec: &Spec,
-    _max_streams: usize,
     on_wavelength: &mut dyn FnMut(usize, usize, f64),
 ) -> Result<Solved, SolveFailure> {
     let grid = PolarGrid::default();

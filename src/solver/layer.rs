@@ -169,12 +169,17 @@ fn refined_solve(
     x
 }
 
-/// Largest absolute entry of a matrix.
+/// Largest absolute entry of a matrix; NaN if any entry is NaN (so that
+/// callers checking `is_finite` see it: `f64::max` would drop a NaN).
 pub fn max_abs(m: MatRef<'_, f64>) -> f64 {
     let mut v: f64 = 0.0;
     for j in 0..m.ncols() {
         for i in 0..m.nrows() {
-            v = v.max(m[(i, j)].abs());
+            let x = m[(i, j)];
+            if x.is_nan() {
+                return f64::NAN;
+            }
+            v = v.max(x.abs());
         }
     }
     v

@@ -184,9 +184,9 @@ impl ReflectionFourier {
             let (wc, ws) = (w * c, w * s);
             for q in 0..ns {
                 let col = rho.col(iv * ns + q);
-                for p in 0..ns {
+                for (p, row) in f.iter_mut().enumerate().take(ns) {
                     let v = col[iu * ns + p];
-                    f[p][q] += match (p < 2, q < 2) {
+                    row[q] += match (p < 2, q < 2) {
                         (true, true) | (false, false) => v * wc,
                         (false, true) => v * ws,
                         (true, false) => -v * ws,
@@ -495,8 +495,9 @@ pub fn reflection(problem: &Problem, mu_user: &[f64]) -> Result<ReflectionFourie
         Some(Thickness::Infinite)
     );
     // The mirror base needs every block (light reflected up by the mirror
-    // scatters in the stack from below).
-    let full = matches!(problem.base, Base::Mirror { .. });
+    // scatters in the stack from below); under a semi-infinite layer the base
+    // is irrelevant.
+    let full = matches!(problem.base, Base::Mirror { .. }) && !semi_infinite;
     let one_order = |m: usize| -> Mat<f64> {
         let mut stack: Option<Ops> = None;
         for layer in &problem.layers {
@@ -536,7 +537,11 @@ pub fn reflection(problem: &Problem, mu_user: &[f64]) -> Result<ReflectionFourie
         for j in 0..r.ncols() {
             let inv = 1.0 / grid.mu_u[j / ns];
             for i in 0..r.nrows() {
-                v = v.max(r[(i, j)].abs() * inv);
+                let x = r[(i, j)];
+                if !x.is_finite() {
+                    return f64::NAN;
+                }
+                v = v.max(x.abs() * inv);
             }
         }
         v

@@ -5,12 +5,15 @@
 //! Spurr 2006, and Hu et al. 2000): with `N` streams per hemisphere the
 //! quadrature integrates the series exactly up to `l = 2N − 1`. The part of
 //! the forward peak beyond it is treated as unscattered light: with
-//! `f = max(0, β_{2N} / (4N + 1))` the truncated coefficients are
-//! `x'_l = (x_l − (2l+1) f)/(1 − f)` for the diagonal series β, δ (all `l`)
+//! `f = max(0, β_{2N} / (4N + 1))` (0 unless `β_1 > 0`: only forward peaks
+//! are removed) the truncated coefficients are
+//! `x'_l = (x_l − (2l+1) f_x)/(1 − f)` for the diagonal series β, δ (all `l`)
 //! and α, ζ (`l ≥ 2`, where `d^l_22` exists), `x'_l = x_l/(1 − f)` for γ, ε,
 //! `l = 0 … 2N − 1`, and the layer is scaled to `τ' = (1 − ωf) τ`,
-//! `ω' = (1 − f) ω / (1 − ωf)`. A forward delta is the identity matrix, so the
-//! same `f` serves all four diagonal elements.
+//! `ω' = (1 − f) ω / (1 − ωf)`. The removed delta carries the polarization of
+//! the forward direction, `f_x = f a_x(0)/a1(0)`: for spheres the forward
+//! matrix is the identity and every `f_x = f`; an intensity-only phase
+//! function keeps `f_x = 0` for α, ζ, δ.
 //!
 //! **Single-scattering correction** (Nakajima & Tanaka 1988, JQSRT 40, 51, the
 //! "TMS" method): the truncated solution gets single scattering wrong near the
@@ -88,9 +91,33 @@ pub fn delta_m(problem: &Problem) -> Result<Truncated, SolverError> {
             continue;
         }
         any = true;
-        // A negative β_{2N} (possible for Mie series) has no forward-peak
-        // meaning: then the series is only truncated (f = 0).
-        let f = (c.beta[keep] / (2.0 * keep as f64 + 1.0)).max(0.0);
+        // A negative β_{2N} (possible for Mie series) or a backward-peaked
+        // phase function (β_1 ≤ 0) has no forward peak to remove: then the
+        // series is only truncated (f = 0).
+        let forward = c.beta.get(1).is_some_and(|&b| b > 0.0);
+        let f = if forward {
+            (c.beta[keep] / (2.0 * keep as f64 + 1.0)).max(0.0)
+        } else {
+            0.0
+        };
+        // The removed forward delta carries the polarization of the exact
+        // forward direction: per diagonal element the fraction
+        // f · a_k(0)/a1(0) (= f for spheres, where a1(0) = a2(0) = a3(0) =
+        // a4(0); 0 for an intensity-only phase function such as
+        // Henyey–Greenstein). At Θ = 0: a1 = Σβ, a2 = a3 = Σ(α+ζ)/2, a4 = Σδ.
+        let a1_0: f64 = c.beta.iter().sum();
+        let a23_0: f64 = c
+            .alpha
+            .iter()
+            .zip(&c.zeta)
+            .map(|(a, z)| 0.5 * (a + z))
+            .sum();
+        let a4_0: f64 = c.delta.iter().sum();
+        let (f23, f4) = if a1_0 > 0.0 {
+            (f * a23_0 / a1_0, f * a4_0 / a1_0)
+        } else {
+            (0.0, 0.0)
+        };
         let w = layer.albedo;
         if !(0.0..1.0).contains(&f) || 1.0 - w * f <= 0.0 {
             return Err(SolverError::Invalid(format!(
@@ -98,11 +125,11 @@ pub fn delta_m(problem: &Problem) -> Result<Truncated, SolverError> {
             )));
         }
         let scale = 1.0 / (1.0 - f);
-        let diag = |x: &[f64], from: usize| -> Vec<f64> {
+        let diag = |x: &[f64], from: usize, fk: f64| -> Vec<f64> {
             (0..keep)
                 .map(|l| {
                     let sub = if l >= from {
-                        (2 * l + 1) as f64 * f
+                        (2 * l + 1) as f64 * fk
                     } else {
                         0.0
                     };
@@ -112,10 +139,10 @@ pub fn delta_m(problem: &Problem) -> Result<Truncated, SolverError> {
         };
         let off = |x: &[f64]| -> Vec<f64> { (0..keep).map(|l| x[l] * scale).collect() };
         let coef_t = GreekCoefficients {
-            beta: diag(&c.beta, 0),
-            alpha: diag(&c.alpha, 2),
-            zeta: diag(&c.zeta, 2),
-            delta: diag(&c.delta, 0),
+            beta: diag(&c.beta, 0, f),
+            alpha: diag(&c.alpha, 2, f23),
+            zeta: diag(&c.zeta, 2, f23),
+            delta: diag(&c.delta, 0, f4),
             gamma: off(&c.gamma),
             epsilon: off(&c.epsilon),
         };

@@ -466,13 +466,13 @@ pub fn validate(spec: &Spec) -> Result<(), SpecError> {
             }
         }
     }
-    if let Some(n) = spec.solver.streams {
-        if n == 0 || n > MAX_STREAMS {
-            return Err(SpecError::new(
-                "solver.streams",
-                format!("{n} is outside the allowed range [1, {MAX_STREAMS}]"),
-            ));
-        }
+    if let Some(n) = spec.solver.streams
+        && (n == 0 || n > MAX_STREAMS)
+    {
+        return Err(SpecError::new(
+            "solver.streams",
+            format!("{n} is outside the allowed range [1, {MAX_STREAMS}]"),
+        ));
     }
     if let Some(t) = spec.solver.tolerance {
         finite_in("solver.tolerance", t, 1e-10, 0.5, "[1e-10, 0.5]")?;

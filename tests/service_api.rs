@@ -419,3 +419,35 @@ async fn a_failed_job_carries_its_typed_error() {
     assert_eq!(metric(&c, &s, "polbrdf_solves_started_total").await, 1.0);
     assert_eq!(metric(&c, &s, "polbrdf_solves_failed_total").await, 1.0);
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_tolerance_spec_reports_the_solver_error_estimate() {
+    let dir = TempDir::new("tolerance");
+    let s = Server::start(&dir.0.join("data"), &[], &[]);
+    let c = client();
+    let spec = r#"{"layers":[{"optical_thickness":0.5,"scatterer":{"rayleigh":{"albedo":0.9}}}],
+                   "solver":{"tolerance":1e-3}}"#;
+    let (code, v, _) = post(&c, &s, spec).await;
+    assert_eq!(code, 202, "{v}");
+    let id = v["id"].as_str().unwrap().to_string();
+    let r = wait_done(&c, &s, &id).await;
+    // The canonical spec keeps the tolerance (no explicit streams).
+    assert_eq!(r["spec"]["solver"]["tolerance"], 1e-3, "{r}");
+    assert!(r["spec"]["solver"]["streams"].is_null(), "{r}");
+    let e = r["error_estimate"].as_f64().expect("an estimate");
+    assert!((0.0..=1e-3).contains(&e), "{r}");
+    // The table records the streams chosen and the same estimate.
+    let bytes = c
+        .get(s.url(&format!("/v1/brdfs/{id}/table")))
+        .send()
+        .await
+        .unwrap()
+        .bytes()
+        .await
+        .unwrap();
+    let table = polbrdf::brdf::format::from_bytes(&bytes).unwrap();
+    let w = &table.metadata.wavelengths[0];
+    assert_eq!(w.error_estimate.as_ref().unwrap().max_err_f11, e);
+    assert_eq!(w.streams, w.error_estimate.as_ref().unwrap().streams[2]);
+    assert_eq!(w.wall_time_ms, 0.0);
+}

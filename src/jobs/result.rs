@@ -12,7 +12,7 @@
 //! fields are 0), so a re-solve reproduces the same digest.
 
 use crate::brdf::format::{self, DataType};
-use crate::brdf::{self, BrdfError, PolarGrid, Table};
+use crate::brdf::{BrdfError, PolarGrid, Table};
 use crate::solver;
 use crate::spec::{self, Spec, canonical};
 use std::time::Instant;
@@ -51,10 +51,12 @@ pub struct SolveFailure {
     pub wavelength_nm: Option<f64>,
 }
 
-/// Solve every wavelength of a spec (one [`brdf::build`] per wavelength, so
-/// that progress can be reported); `on_wavelength(done, total, ms)` is
-/// called after each wavelength. A `solver.tolerance` may pick up to
-/// [`spec::MAX_STREAMS`] streams (the table builder's cap).
+/// Solve every wavelength of a spec (one [`Table::from_spec`] per
+/// wavelength, so that progress can be reported, then one table with the
+/// per-wavelength streams and error estimates in its metadata);
+/// `on_wavelength(done, total, ms)` is called after each wavelength. A
+/// `solver.tolerance` may pick up to [`spec::MAX_STREAMS`] streams (the
+/// table builder's cap).
 pub fn solve(
     spec: &Spec,
     on_wavelength: &mut dyn FnMut(usize, usize, f64),
@@ -63,6 +65,7 @@ pub fn solve(
     let wavelengths = spec::wavelengths(spec);
     let total = wavelengths.len();
     let mut blocks = Vec::with_capacity(total);
+    let mut metas = Vec::with_capacity(total);
     let mut wall = Vec::with_capacity(total);
     for (k, wl) in wavelengths.into_iter().enumerate() {
         let t0 = Instant::now();
@@ -70,34 +73,44 @@ pub fn solve(
             wavelengths_nm: wl.map(|w| vec![w]),
             ..spec.clone()
         };
-        let built = brdf::build(&one, &grid).map_err(|e| failure(e, wl))?;
-        for mut b in built {
-            // Timings belong to the job's row; the bytes stay deterministic.
-            b.wall_time_ms = 0.0;
-            if b.f.iter().any(|x| !x.is_finite()) {
-                return Err(failure(
-                    BrdfError::Solver(solver::SolverError::NonFinite("BRDF coefficients".into())),
-                    wl,
-                ));
-            }
-            blocks.push(b);
+        let mut single = Table::from_spec(&one, grid.clone()).map_err(|e| failure(e, wl))?;
+        let (Some(mut block), Some(meta)) =
+            (single.wavelengths.pop(), single.metadata.wavelengths.pop())
+        else {
+            return Err(failure(
+                BrdfError::Format("the table builder returned no wavelength".into()),
+                wl,
+            ));
+        };
+        if block.f.iter().any(|x| !x.is_finite()) {
+            return Err(failure(
+                BrdfError::Solver(solver::SolverError::NonFinite("BRDF coefficients".into())),
+                wl,
+            ));
         }
+        // Timings belong to the job's row; the bytes stay deterministic.
+        block.wall_time_ms = 0.0;
+        blocks.push(block);
+        metas.push(meta);
         let ms = t0.elapsed().as_secs_f64() * 1e3;
         wall.push(ms);
         on_wavelength(k + 1, total, ms);
     }
     let mut table = Table::new(spec, grid, blocks).map_err(|e| failure(e, None))?;
+    for m in &mut table.metadata.wavelengths {
+        if let Some(solved) = metas.iter().find(|x| x.wavelength_nm == m.wavelength_nm) {
+            m.streams = solved.streams;
+            m.error_estimate = solved.error_estimate.clone();
+        }
+        m.wall_time_ms = 0.0;
+    }
     let (canonical_json, id) = canonical::id(spec);
     table.metadata.spec = serde_json::from_str(&canonical_json).expect("canonical JSON");
     table.metadata.spec_hash = id;
-    // The largest per-wavelength estimate the table records (specs with a
-    // `solver.tolerance`), read through the metadata's JSON form.
-    let meta = serde_json::to_value(&table.metadata).expect("metadata JSON");
-    let error_estimate = meta["wavelengths"]
-        .as_array()
-        .into_iter()
-        .flatten()
-        .filter_map(|w| w["error_estimate"]["max_err_f11"].as_f64())
+    let error_estimate = metas
+        .iter()
+        .filter_map(|m| m.error_estimate.as_ref().map(|e| e.max_err_f11))
+        .filter(|e| e.is_finite())
         .reduce(f64::max);
     let bytes = format::to_bytes(&table, DATA_TYPE).map_err(|e| failure(e, None))?;
     Ok(Solved {

@@ -5,15 +5,15 @@
 //! Spurr 2006, and Hu et al. 2000): with `N` streams per hemisphere the
 //! quadrature integrates the series exactly up to `l = 2N − 1`. The part of
 //! the forward peak beyond it is treated as unscattered light: with
-//! `f = max(0, β_{2N} / (4N + 1))` (0 unless `β_1 > 0`: only forward peaks
-//! are removed) the truncated coefficients are
+//! `f = max(0, β_{2N} / (4N + 1))` the truncated coefficients are
 //! `x'_l = (x_l − (2l+1) f_x)/(1 − f)` for the diagonal series β, δ (all `l`)
 //! and α, ζ (`l ≥ 2`, where `d^l_22` exists), `x'_l = x_l/(1 − f)` for γ, ε,
 //! `l = 0 … 2N − 1`, and the layer is scaled to `τ' = (1 − ωf) τ`,
 //! `ω' = (1 − f) ω / (1 − ωf)`. The removed delta carries the polarization of
 //! the forward direction, `f_x = f a_x(0)/a1(0)`: for spheres the forward
 //! matrix is the identity and every `f_x = f`; an intensity-only phase
-//! function keeps `f_x = 0` for α, ζ, δ.
+//! function keeps `f_x = 0` for α, ζ, δ. Only forward-peaked series
+//! (`β_1 > 0`) are truncated; others are kept whole.
 //!
 //! **Single-scattering correction** (Nakajima & Tanaka 1988, JQSRT 40, 51, the
 //! "TMS" method): the truncated solution gets single scattering wrong near the
@@ -75,7 +75,11 @@ pub fn delta_m(problem: &Problem) -> Result<Truncated, SolverError> {
             Thickness::Infinite => f64::INFINITY,
         };
         let c = &layer.coef;
-        if c.beta.len() <= keep {
+        // Only forward peaks are truncated: a series that does not fit the
+        // quadrature but is not forward-peaked (β_1 ≤ 0) is kept whole; its
+        // truncation would leave negative lobes in the phase function.
+        let forward = c.beta.get(1).is_some_and(|&b| b > 0.0);
+        if c.beta.len() <= keep || !forward {
             corr.push(CorrectionLayer {
                 omega: layer.albedo,
                 tau,
@@ -94,12 +98,7 @@ pub fn delta_m(problem: &Problem) -> Result<Truncated, SolverError> {
         // A negative β_{2N} (possible for Mie series) or a backward-peaked
         // phase function (β_1 ≤ 0) has no forward peak to remove: then the
         // series is only truncated (f = 0).
-        let forward = c.beta.get(1).is_some_and(|&b| b > 0.0);
-        let f = if forward {
-            (c.beta[keep] / (2.0 * keep as f64 + 1.0)).max(0.0)
-        } else {
-            0.0
-        };
+        let f = (c.beta[keep] / (2.0 * keep as f64 + 1.0)).max(0.0);
         // The removed forward delta carries the polarization of the exact
         // forward direction: per diagonal element the fraction
         // f · a_k(0)/a1(0) (= f for spheres, where a1(0) = a2(0) = a3(0) =

@@ -74,8 +74,16 @@ pub fn main() -> i32 {
     };
     match result {
         Ok(v) => {
-            println!("{}", serde_json::to_string_pretty(&v).expect("JSON"));
-            0
+            // A closed pipe (`polbrdf … | head`) is not an error of ours.
+            use std::io::Write;
+            let text = serde_json::to_string_pretty(&v).expect("JSON");
+            match writeln!(std::io::stdout().lock(), "{text}") {
+                Err(e) if e.kind() != std::io::ErrorKind::BrokenPipe => {
+                    eprintln!("polbrdf: writing the output: {e}");
+                    1
+                }
+                _ => 0,
+            }
         }
         Err(e) => {
             eprintln!("polbrdf: {e}");

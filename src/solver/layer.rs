@@ -386,6 +386,20 @@ pub fn add_mirror(a: &Ops, mq: &Mat<f64>, mu_blocks: &Mat<f64>) -> TopResponse {
     let (n, nu, ns) = (a.n, a.nu, a.ns);
     // Beam-up at the interface per unit beam-down at the top: C = M_u E_a.
     let c = scale_cols(mu_blocks, &a.eu, ns);
+    // `[x_block | b_block + beam_up · C]` for inputs `[x | b]`.
+    let with_beam_up = |x_block: &Mat<f64>, b_block: &Mat<f64>, beam_up: &Mat<f64>| -> Mat<f64> {
+        let rows = x_block.nrows();
+        let mut out = Mat::zeros(rows, n + nu);
+        out.as_mut()
+            .submatrix_mut(0, 0, rows, n)
+            .copy_from(x_block.as_ref());
+        let mut b = b_block.clone();
+        mm_into(&mut b, Accum::Add, beam_up.as_ref(), c.as_ref());
+        out.as_mut()
+            .submatrix_mut(0, n, rows, nu)
+            .copy_from(b.as_ref());
+        out
+    };
     // D = G [T_a | Tb_a + Rb*_a C], G = (I − R*_a M_q)^{-1}; U = M_q D.
     let mut g = mm(a.rs.as_ref(), mq.as_ref());
     for i in 0..n {
@@ -393,57 +407,20 @@ pub fn add_mirror(a: &Ops, mq: &Mat<f64>, mu_blocks: &Mat<f64>) -> TopResponse {
             g[(i, j)] = if i == j { 1.0 } else { 0.0 } - g[(i, j)];
         }
     }
-    let mut rhs = Mat::zeros(n, n + nu);
-    rhs.as_mut()
-        .submatrix_mut(0, 0, n, n)
-        .copy_from(a.t.as_ref());
-    let mut tb = a.tb.clone();
-    mm_into(&mut tb, Accum::Add, a.rbs.as_ref(), c.as_ref());
-    rhs.as_mut()
-        .submatrix_mut(0, n, n, nu)
-        .copy_from(tb.as_ref());
+    let rhs = with_beam_up(&a.t, &a.tb, &a.rbs);
     let d = g.partial_piv_lu().solve(&rhs);
     let u = mm(mq.as_ref(), d.as_ref());
 
-    let mut top_q = Mat::zeros(n, n + nu);
-    top_q
-        .as_mut()
-        .submatrix_mut(0, 0, n, n)
-        .copy_from(a.r.as_ref());
-    let mut rb = a.rb.clone();
-    mm_into(&mut rb, Accum::Add, a.tbs.as_ref(), c.as_ref());
-    top_q
-        .as_mut()
-        .submatrix_mut(0, n, n, nu)
-        .copy_from(rb.as_ref());
+    let mut top_q = with_beam_up(&a.r, &a.rb, &a.tbs);
     mm_into(&mut top_q, Accum::Add, a.ts.as_ref(), u.as_ref());
 
-    // User radiance going down at the interface, reflected by the mirror.
-    let mut down_u = Mat::zeros(nu, n + nu);
-    down_u
-        .as_mut()
-        .submatrix_mut(0, 0, nu, n)
-        .copy_from(a.tu.as_ref());
-    let mut tuu = a.tuu.clone();
-    mm_into(&mut tuu, Accum::Add, a.ruus.as_ref(), c.as_ref());
-    down_u
-        .as_mut()
-        .submatrix_mut(0, n, nu, nu)
-        .copy_from(tuu.as_ref());
+    // User radiance going down at the interface, reflected by the mirror and
+    // crossing `a` directly.
+    let mut down_u = with_beam_up(&a.tu, &a.tuu, &a.ruus);
     mm_into(&mut down_u, Accum::Add, a.rus.as_ref(), u.as_ref());
     let up_u = scale_rows(&mm(mu_blocks.as_ref(), down_u.as_ref()), &a.eu, ns);
 
-    let mut top_u = Mat::zeros(nu, n + nu);
-    top_u
-        .as_mut()
-        .submatrix_mut(0, 0, nu, n)
-        .copy_from(a.ru.as_ref());
-    let mut ruu = a.ruu.clone();
-    mm_into(&mut ruu, Accum::Add, a.tuus.as_ref(), c.as_ref());
-    top_u
-        .as_mut()
-        .submatrix_mut(0, n, nu, nu)
-        .copy_from(ruu.as_ref());
+    let mut top_u = with_beam_up(&a.ru, &a.ruu, &a.tuus);
     mm_into(&mut top_u, Accum::Add, a.tus.as_ref(), u.as_ref());
     top_u += &up_u;
 

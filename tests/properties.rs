@@ -19,9 +19,9 @@
 
 mod common;
 
-use common::{Worst, garcia_siewert};
+use common::{Worst, garcia_siewert, max_diff, reversed};
 use polbrdf::physics::quadrature::gauss_legendre_on;
-use polbrdf::physics::stokes::{self, Mueller};
+use polbrdf::physics::stokes;
 use polbrdf::solver::{Base, Problem, reflection};
 use polbrdf::spec;
 use proptest::prelude::*;
@@ -203,25 +203,6 @@ fn plane_albedo(p: &Problem, mu0: &[f64]) -> Result<Vec<f64>, String> {
             a
         })
         .collect())
-}
-
-fn max_diff(a: &Mueller, b: &Mueller) -> f64 {
-    a.iter()
-        .flatten()
-        .zip(b.iter().flatten())
-        .fold(0.0, |m, (x, y)| m.max((x - y).abs()))
-}
-
-/// `Δ gᵀ Δ`, `Δ = diag(1, 1, −1, 1)`.
-fn reversed(g: &Mueller) -> Mueller {
-    let d = [1.0, 1.0, -1.0, 1.0];
-    let mut o = [[0.0; 4]; 4];
-    for i in 0..4 {
-        for j in 0..4 {
-            o[i][j] = d[i] * g[j][i] * d[j];
-        }
-    }
-    o
 }
 
 /// Worst values over all cases.

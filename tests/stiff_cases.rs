@@ -13,7 +13,7 @@
 
 mod common;
 
-use common::{Worst, garcia_siewert};
+use common::{Worst, garcia_siewert, max_diff, reversed};
 use polbrdf::physics::expansion::GreekCoefficients;
 use polbrdf::physics::quadrature::gauss_legendre_on;
 use polbrdf::physics::stokes::{self, Mueller};
@@ -80,25 +80,6 @@ fn solve(p: &Problem, mu: &[f64]) -> ReflectionFourier {
 
 fn max_abs(m: &Mueller) -> f64 {
     m.iter().flatten().fold(0.0, |a, &x| a.max(x.abs()))
-}
-
-fn max_diff(a: &Mueller, b: &Mueller) -> f64 {
-    a.iter()
-        .flatten()
-        .zip(b.iter().flatten())
-        .fold(0.0, |m, (x, y)| m.max((x - y).abs()))
-}
-
-/// `Δ gᵀ Δ` with `Δ = diag(1, 1, −1, 1)`.
-fn reversed(g: &Mueller) -> Mueller {
-    let d = [1.0, 1.0, -1.0, 1.0];
-    let mut o = [[0.0; 4]; 4];
-    for i in 0..4 {
-        for j in 0..4 {
-            o[i][j] = d[i] * g[j][i] * d[j];
-        }
-    }
-    o
 }
 
 /// Worst values of the laws every BRDF must obey.

@@ -52,3 +52,23 @@ impl Worst {
         }
     }
 }
+
+/// Largest absolute difference of two Mueller matrices.
+pub fn max_diff(a: &[[f64; 4]; 4], b: &[[f64; 4]; 4]) -> f64 {
+    a.iter()
+        .flatten()
+        .zip(b.iter().flatten())
+        .fold(0.0, |m, (x, y)| m.max((x - y).abs()))
+}
+
+/// The reciprocal partner `Δ gᵀ Δ`, `Δ = diag(1, 1, −1, 1)` (conventions §5).
+pub fn reversed(g: &[[f64; 4]; 4]) -> [[f64; 4]; 4] {
+    let d = [1.0, 1.0, -1.0, 1.0];
+    let mut o = [[0.0; 4]; 4];
+    for i in 0..4 {
+        for j in 0..4 {
+            o[i][j] = d[i] * g[j][i] * d[j];
+        }
+    }
+    o
+}

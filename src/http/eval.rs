@@ -23,10 +23,14 @@ use utoipa::{IntoParams, ToSchema};
 /// Most direction pairs per `POST …/eval`.
 pub const MAX_EVAL_POINTS: usize = 100_000;
 
-/// Parsed tables kept in memory, by digest (most recently used last).
+/// Parsed tables kept in memory, by digest (most recently used last), and
+/// the done rows that point at them, by id: a done result never changes
+/// (the id is the spec's hash and the solve is deterministic), so a hot
+/// eval path needs no database round trip.
 #[derive(Debug, Default)]
 pub struct TableCache {
     tables: Mutex<VecDeque<(String, Arc<Table>)>>,
+    done: Mutex<VecDeque<(String, JobRow, Arc<Table>)>>,
 }
 
 /// Tables kept by [`TableCache`].
@@ -40,6 +44,22 @@ impl TableCache {
         let t = e.1.clone();
         q.push_back(e);
         Some(t)
+    }
+
+    fn get_done(&self, id: &str) -> Option<(JobRow, Arc<Table>)> {
+        let q = self.done.lock().expect("done cache");
+        q.iter()
+            .find(|(i, _, _)| i == id)
+            .map(|(_, row, t)| (row.clone(), t.clone()))
+    }
+
+    fn put_done(&self, id: &str, row: JobRow, table: Arc<Table>) {
+        let mut q = self.done.lock().expect("done cache");
+        q.retain(|(i, _, _)| i != id);
+        q.push_back((id.to_string(), row, table));
+        while q.len() > CACHED_TABLES {
+            q.pop_front();
+        }
     }
 
     fn put(&self, digest: String, table: Arc<Table>) {
@@ -135,6 +155,9 @@ async fn table_of(state: &AppState, id: &str) -> Result<(JobRow, Arc<Table>), Ap
         return Err(ApiError::NotFound(id.to_string()));
     }
     let app = &state.0;
+    if let Some(hit) = app.tables.get_done(id) {
+        return Ok(hit);
+    }
     let row = app
         .jobs
         .index()
@@ -163,6 +186,7 @@ async fn table_of(state: &AppState, id: &str) -> Result<(JobRow, Arc<Table>), Ap
     }
     let digest = row.digest.clone().unwrap_or_default();
     if let Some(t) = app.tables.get(&digest) {
+        app.tables.put_done(id, row.clone(), t.clone());
         return Ok((row, t));
     }
     let Some(bytes) = app.jobs.result_bytes(&row).await? else {
@@ -177,6 +201,7 @@ async fn table_of(state: &AppState, id: &str) -> Result<(JobRow, Arc<Table>), Ap
         .map_err(|e| ApiError::Internal(format!("stored table {digest}: {e}")))?;
     let table = Arc::new(table);
     app.tables.put(digest, table.clone());
+    app.tables.put_done(id, row.clone(), table.clone());
     Ok((row, table))
 }
 

@@ -159,7 +159,7 @@ pub struct Metadata {
     pub generator: String,
     /// The material spec the table was built from (docs/spec.md).
     pub spec: serde_json::Value,
-    /// Placeholder until specs have a canonical hash.
+    /// The spec's id (SHA-256 of its canonical form, `spec::canonical::id`).
     pub spec_hash: String,
     /// Solver settings.
     pub solver: SolverMeta,
@@ -184,9 +184,6 @@ pub struct Table {
     /// Per wavelength, increasing.
     pub wavelengths: Vec<WavelengthTable>,
 }
-
-/// Placeholder stored in [`Metadata::spec_hash`].
-pub const SPEC_HASH_PLACEHOLDER: &str = "placeholder: no canonical spec hash yet";
 
 /// Solve the spec once per wavelength at the grid cosines
 /// ([`solver::reflection`] with `mu_user` = the grid's `μ`; for a spec with
@@ -473,10 +470,13 @@ impl Table {
         // The settings `spec::problem` derives (the first wavelength's).
         let first = spec::wavelengths(spec).into_iter().next().flatten();
         let settings = spec::problem(spec, first)?.settings;
+        // The spec's id: SHA-256 of its canonical form (docs/service.md), the
+        // same id the service uses.
+        let (_, spec_id) = crate::spec::canonical::id(spec);
         let metadata = Metadata {
             generator: format!("polbrdf {}", env!("CARGO_PKG_VERSION")),
             spec: serde_json::to_value(spec).map_err(|e| BrdfError::Format(e.to_string()))?,
-            spec_hash: SPEC_HASH_PLACEHOLDER.into(),
+            spec_hash: spec_id,
             solver: SolverMeta {
                 streams: settings.streams,
                 tolerance: match spec::stream_policy(spec) {

@@ -301,7 +301,30 @@ pub async fn create_brdf(
     }
 }
 
-async fn row_of(state: &AppState, id: &str) -> Result<JobRow, ApiError> {
+/// A result is served only from a done row: queued/running → not ready
+/// (409 with Retry-After), failed → the job's typed problem.
+pub(super) fn require_done(row: &JobRow, id: &str) -> Result<(), ApiError> {
+    match row.status {
+        Status::Queued | Status::Running => Err(ApiError::NotReady {
+            id: id.to_string(),
+            status: row.status.as_str(),
+        }),
+        Status::Failed => {
+            let problem = row
+                .error
+                .as_deref()
+                .and_then(|e| serde_json::from_str(e).ok())
+                .unwrap_or_else(|| Problem::new("job-failed", "BRDF job failed", 409, "unknown"));
+            Err(ApiError::JobFailed {
+                id: id.to_string(),
+                problem: Box::new(problem),
+            })
+        }
+        Status::Done => Ok(()),
+    }
+}
+
+pub(super) async fn row_of(state: &AppState, id: &str) -> Result<JobRow, ApiError> {
     if !canonical::is_id(id) {
         return Err(ApiError::NotFound(id.to_string()));
     }
@@ -391,26 +414,7 @@ pub async fn get_table(
     headers: HeaderMap,
 ) -> Result<Response, ApiError> {
     let row = row_of(&state, &id).await?;
-    match row.status {
-        Status::Queued | Status::Running => {
-            return Err(ApiError::NotReady {
-                id,
-                status: row.status.as_str(),
-            });
-        }
-        Status::Failed => {
-            let problem = row
-                .error
-                .as_deref()
-                .and_then(|e| serde_json::from_str(e).ok())
-                .unwrap_or_else(|| Problem::new("job-failed", "BRDF job failed", 409, "unknown"));
-            return Err(ApiError::JobFailed {
-                id,
-                problem: Box::new(problem),
-            });
-        }
-        Status::Done => {}
-    }
+    require_done(&row, &id)?;
     let digest = row.digest.clone().unwrap_or_default();
     if none_match(&headers, &digest) {
         let mut res = StatusCode::NOT_MODIFIED.into_response();

@@ -8,7 +8,7 @@ use crate::brdf::export::FRAMES;
 use crate::brdf::{BrdfError, Directions, Table, format};
 use crate::jobs::Problem;
 use crate::spec::canonical;
-use crate::storage::{JobRow, Status};
+use crate::storage::JobRow;
 use axum::Json;
 use axum::body::Bytes;
 use axum::extract::rejection::{BytesRejection, FailedToBufferBody, QueryRejection};
@@ -158,32 +158,8 @@ async fn table_of(state: &AppState, id: &str) -> Result<(JobRow, Arc<Table>), Ap
     if let Some(hit) = app.tables.get_done(id) {
         return Ok(hit);
     }
-    let row = app
-        .jobs
-        .index()
-        .get(id)
-        .await?
-        .ok_or_else(|| ApiError::NotFound(id.to_string()))?;
-    match row.status {
-        Status::Queued | Status::Running => {
-            return Err(ApiError::NotReady {
-                id: id.to_string(),
-                status: row.status.as_str(),
-            });
-        }
-        Status::Failed => {
-            let problem = row
-                .error
-                .as_deref()
-                .and_then(|e| serde_json::from_str(e).ok())
-                .unwrap_or_else(|| Problem::new("job-failed", "BRDF job failed", 409, "unknown"));
-            return Err(ApiError::JobFailed {
-                id: id.to_string(),
-                problem: Box::new(problem),
-            });
-        }
-        Status::Done => {}
-    }
+    let row = super::brdfs::row_of(state, id).await?;
+    super::brdfs::require_done(&row, id)?;
     let digest = row.digest.clone().unwrap_or_default();
     if let Some(t) = app.tables.get(&digest) {
         app.tables.put_done(id, row.clone(), t.clone());

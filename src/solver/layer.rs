@@ -145,6 +145,13 @@ impl Ops {
     }
 }
 
+/// `I − A B` (the matrix of the adding equations' multiple reflections).
+pub fn identity_minus_product(a: MatRef<'_, f64>, b: MatRef<'_, f64>) -> Mat<f64> {
+    let mut g = Mat::<f64>::identity(a.nrows(), b.ncols());
+    matmul(g.as_mut(), Accum::Add, a, b, -1.0, Par::Seq);
+    g
+}
+
 /// Solve `G X = B` with one step of iterative refinement (Wilkinson 1963):
 /// `X ← X + G⁻¹(B − G X)`. In thick conservative layers `G = I − R* R` is
 /// nearly singular (its condition grows like τ); refinement keeps the
@@ -285,12 +292,7 @@ pub fn add(a: &Ops, b: &Ops, full: bool) -> Ops {
     let x = cols.assemble(n, [Some(&a.t), Some(&a.tb), None, Some(&rbsa_eb)]);
 
     // G = (I − R*_a R_b)^{-1}: factorise once, solve.
-    let mut g = mm(a.rs.as_ref(), b.r.as_ref());
-    for i in 0..n {
-        for j in 0..n {
-            g[(i, j)] = if i == j { 1.0 } else { 0.0 } - g[(i, j)];
-        }
-    }
+    let g = identity_minus_product(a.rs.as_ref(), b.r.as_ref());
     let lu = g.partial_piv_lu();
     let mut rhs = x;
     mm_into(&mut rhs, Accum::Add, a.rs.as_ref(), v.as_ref());
@@ -401,12 +403,7 @@ pub fn add_mirror(a: &Ops, mq: &Mat<f64>, mu_blocks: &Mat<f64>) -> TopResponse {
         out
     };
     // D = G [T_a | Tb_a + Rb*_a C], G = (I − R*_a M_q)^{-1}; U = M_q D.
-    let mut g = mm(a.rs.as_ref(), mq.as_ref());
-    for i in 0..n {
-        for j in 0..n {
-            g[(i, j)] = if i == j { 1.0 } else { 0.0 } - g[(i, j)];
-        }
-    }
+    let g = identity_minus_product(a.rs.as_ref(), mq.as_ref());
     let rhs = with_beam_up(&a.t, &a.tb, &a.rbs);
     let d = g.partial_piv_lu().solve(&rhs);
     let u = mm(mq.as_ref(), d.as_ref());
@@ -483,15 +480,9 @@ impl TopOps {
 /// `R' = R + T* U_x`, `T' = T D_x`, `Ru' = Ru + Tu* U_x + E Ru D_x`,
 /// `Tu*' = Tu* U_y + E (Ru D_y + Tu*)`.
 pub fn double_top(o: &TopOps, ns: usize) -> TopOps {
-    let n = o.r.nrows();
     let rs = mirror(&o.r, ns);
     let ts = mirror(&o.t, ns);
-    let mut g = mm(rs.as_ref(), o.r.as_ref());
-    for i in 0..n {
-        for j in 0..n {
-            g[(i, j)] = if i == j { 1.0 } else { 0.0 } - g[(i, j)];
-        }
-    }
+    let g = identity_minus_product(rs.as_ref(), o.r.as_ref());
     let lu = g.partial_piv_lu();
     let dx = refined_solve(&g, &lu, &o.t);
     let ux = mm(o.r.as_ref(), dx.as_ref());

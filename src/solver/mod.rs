@@ -812,12 +812,7 @@ fn interface_field(a: &Ops, b: &Ops) -> (Mat<f64>, Mat<f64>) {
             }
         }
     }
-    let mut g = layer::mm(a.rs.as_ref(), b.r.as_ref());
-    for i in 0..n {
-        for j in 0..n {
-            g[(i, j)] = if i == j { 1.0 } else { 0.0 } - g[(i, j)];
-        }
-    }
+    let g = layer::identity_minus_product(a.rs.as_ref(), b.r.as_ref());
     let mut rhs = Mat::<f64>::zeros(n, nu + 1);
     let beam = &a.tb + layer::mm(a.rs.as_ref(), rbb_ea.as_ref());
     rhs.as_mut()

@@ -9,6 +9,8 @@ pub mod cli;
 pub mod http;
 pub mod jobs;
 pub mod physics;
+pub mod plot;
+pub mod render;
 pub mod solver;
 pub mod spec;
 pub mod storage;

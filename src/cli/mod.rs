@@ -6,6 +6,8 @@ pub mod convergence;
 pub mod eval;
 pub mod export;
 pub mod mie;
+pub mod plot;
+pub mod render;
 pub mod serve;
 pub mod solve;
 
@@ -43,6 +45,10 @@ enum Command {
     Export(export::ExportArgs),
     /// Error against run time: solve at increasing streams, compare with a reference.
     Convergence(convergence::ConvergenceArgs),
+    /// Plots of the seed's figures (SVG/PNG plus the plotted numbers as CSV).
+    Plot(plot::PlotArgs),
+    /// Polarized preview renderer (spheres with BRDF tables on a floor).
+    Render(render::RenderArgs),
     /// Run the HTTP service (docs/service.md).
     Serve(serve::ServeArgs),
     /// Benchmarks (timings go to docs/performance.md).
@@ -70,6 +76,8 @@ pub fn main() -> i32 {
         Command::Export(a) => export::run(&a),
         Command::Convergence(a) => convergence::run(&a),
         Command::Bench(b) => bench::run(&b),
+        Command::Plot(a) => plot::run(&a),
+        Command::Render(a) => render::run(&a),
         Command::Serve(a) => return serve::main(&a),
     };
     match result {

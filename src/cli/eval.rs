@@ -3,14 +3,13 @@
 //! (docs/table-format.md).
 
 use crate::brdf::export::FRAMES;
-use crate::brdf::format;
 use crate::brdf::table::{Directions, MIRROR_TOLERANCE_RAD};
 use clap::Args;
 use serde_json::{Value, json};
 
 #[derive(Debug, Args)]
 pub struct EvalArgs {
-    /// A table written by `polbrdf solve SPEC --table OUT`.
+    /// A table written by `polbrdf solve SPEC --table OUT`, or a service result URL (`http://HOST:PORT/v1/brdfs/ID`).
     pub table: String,
     /// Incident polar angle (deg, [0, 90]; graphics convention).
     #[arg(long, allow_negative_numbers = true)]
@@ -32,7 +31,7 @@ pub struct EvalArgs {
 
 /// Run `eval`.
 pub fn run(a: &EvalArgs) -> Result<Value, String> {
-    let table = format::read_file(&a.table).map_err(|e| e.to_string())?;
+    let table = super::source::load_table(&a.table)?;
     let d = Directions {
         theta_i_deg: a.theta_i,
         phi_i_deg: a.phi_i,

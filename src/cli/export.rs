@@ -32,7 +32,7 @@ pub enum Dtype {
 
 #[derive(Debug, Args)]
 pub struct ExportArgs {
-    /// A table written by `polbrdf solve SPEC --table OUT`.
+    /// A table written by `polbrdf solve SPEC --table OUT`, or a service result URL (`http://HOST:PORT/v1/brdfs/ID`).
     pub table: String,
     /// Output format.
     #[arg(long, value_enum)]
@@ -78,7 +78,7 @@ fn read_points(path: &str) -> Result<Vec<Directions>, String> {
 
 /// Run `export`; the summary JSON is printed by the caller.
 pub fn run(a: &ExportArgs) -> Result<Value, String> {
-    let table = format::read_file(&a.table).map_err(|e| e.to_string())?;
+    let table = super::source::load_table(&a.table)?;
     match a.format {
         ExportFormat::Npy => {
             if a.points.is_some() || a.theta_i_deg.is_some() || a.wavelength_nm.is_some() {

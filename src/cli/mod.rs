@@ -10,6 +10,7 @@ pub mod plot;
 pub mod render;
 pub mod serve;
 pub mod solve;
+pub mod source;
 
 use clap::{Parser, Subcommand};
 

@@ -32,12 +32,34 @@ impl Default for DenseGrid {
     /// midpoints of 51 equal steps of 0..90° (0.88°..89.12°), φ at 0, 6, …,
     /// 360°.
     fn default() -> Self {
-        let theta: Vec<f64> = (0..51).map(|k| 90.0 * (k as f64 + 0.5) / 51.0).collect();
-        Self {
+        Self::regular(51, 61).expect("the seed's grid")
+    }
+}
+
+impl DenseGrid {
+    /// `thetas` polar angles at the midpoints of equal steps of 0..90° (for
+    /// both directions) and `phis ≥ 2` azimuths from 0 to 360° inclusive.
+    pub fn regular(thetas: usize, phis: usize) -> Result<Self, BrdfError> {
+        if thetas == 0 || phis < 2 {
+            return Err(BrdfError::Query(format!(
+                "a dense grid needs at least 1 polar angle and 2 azimuths (got {thetas} and {phis})"
+            )));
+        }
+        let theta: Vec<f64> = (0..thetas)
+            .map(|k| 90.0 * (k as f64 + 0.5) / thetas as f64)
+            .collect();
+        Ok(Self {
             theta_i_deg: theta.clone(),
             theta_o_deg: theta,
-            phi_deg: (0..61).map(|k| 360.0 * k as f64 / 60.0).collect(),
-        }
+            phi_deg: (0..phis)
+                .map(|k| 360.0 * k as f64 / (phis - 1) as f64)
+                .collect(),
+        })
+    }
+
+    /// Values per wavelength (`Ti · To · P · 16`).
+    pub fn values_per_wavelength(&self) -> usize {
+        self.theta_i_deg.len() * self.theta_o_deg.len() * self.phi_deg.len() * 16
     }
 }
 

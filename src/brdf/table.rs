@@ -192,10 +192,30 @@ pub struct Table {
 /// keep `f^m = ρ^m/μ_i` (T0) and, for a mirror base, `e^{−2τ/μ} M_F(μ)` per
 /// node.
 pub fn build(spec: &Spec, grid: &PolarGrid) -> Result<Vec<WavelengthTable>, BrdfError> {
-    Ok(build_with_streams(spec, grid)?
+    Ok(build_with_streams(spec, grid, &BuildOptions::default())?
         .into_iter()
         .map(|(w, _, _)| w)
         .collect())
+}
+
+/// How [`Table::from_spec_with`] builds a table.
+pub struct BuildOptions<'a> {
+    /// Most streams a `solver.tolerance` may pick (explicit
+    /// `solver.streams` are the spec's own business).
+    pub max_streams: usize,
+    /// Progress: `(wavelength index, total wavelengths, fraction of that
+    /// wavelength done)`, called on the solving thread after each batch of
+    /// Fourier orders (approximate; see [`solver::OnOrders`]).
+    pub on_progress: &'a (dyn Fn(usize, usize, f64) + Sync),
+}
+
+impl Default for BuildOptions<'_> {
+    fn default() -> Self {
+        Self {
+            max_streams: spec::MAX_STREAMS,
+            on_progress: &|_, _, _| {},
+        }
+    }
 }
 
 /// [`build`], also returning per wavelength the streams used and the
@@ -203,14 +223,20 @@ pub fn build(spec: &Spec, grid: &PolarGrid) -> Result<Vec<WavelengthTable>, Brdf
 fn build_with_streams(
     spec: &Spec,
     grid: &PolarGrid,
+    options: &BuildOptions,
 ) -> Result<Vec<(WavelengthTable, usize, Option<EstimateMeta>)>, BrdfError> {
     let mut out = Vec::new();
-    for wl in spec::wavelengths(spec) {
+    let wavelengths = spec::wavelengths(spec);
+    let total = wavelengths.len();
+    for (k, wl) in wavelengths.into_iter().enumerate() {
         let problem = spec::problem(spec, wl)?;
         let t0 = Instant::now();
+        let progress = |x: f64| (options.on_progress)(k, total, x);
         let (refl, streams, error_estimate) = match spec::stream_policy(spec) {
             spec::StreamPolicy::Fixed(_) => (
-                solver::reflection(&problem, &grid.mu)?,
+                solver::reflection_observed(&problem, &grid.mu, &|done, bound| {
+                    progress(done as f64 / bound.max(1) as f64)
+                })?,
                 problem.settings.streams,
                 None,
             ),
@@ -219,7 +245,8 @@ fn build_with_streams(
                     &problem,
                     &grid.mu,
                     t,
-                    spec::MAX_STREAMS,
+                    options.max_streams,
+                    &progress,
                 )?;
                 let est = EstimateMeta {
                     max_err_f11: e.estimate.max_err_f11,
@@ -432,7 +459,17 @@ impl Table {
     /// Build a table (one [`solver::reflection`] per wavelength, [`build`])
     /// with its metadata.
     pub fn from_spec(spec: &Spec, grid: PolarGrid) -> Result<Self, BrdfError> {
-        let built = build_with_streams(spec, &grid)?;
+        Self::from_spec_with(spec, grid, &BuildOptions::default())
+    }
+
+    /// [`Table::from_spec`] with a stream cap for tolerance specs and a
+    /// progress sink.
+    pub fn from_spec_with(
+        spec: &Spec,
+        grid: PolarGrid,
+        options: &BuildOptions,
+    ) -> Result<Self, BrdfError> {
+        let built = build_with_streams(spec, &grid, options)?;
         let extra: Vec<(Option<f64>, usize, Option<EstimateMeta>)> = built
             .iter()
             .map(|(w, n, e)| (w.wavelength_nm, *n, e.clone()))

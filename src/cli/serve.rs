@@ -34,7 +34,7 @@ pub struct ServeArgs {
     /// Largest request body in bytes; beyond it 413 [env POLBRDF_MAX_BODY_BYTES; default 1048576].
     #[arg(long)]
     pub max_body_bytes: Option<usize>,
-    /// Largest explicit solver.streams [env POLBRDF_MAX_STREAMS; default 128].
+    /// Most streams: the cap on an explicit solver.streams and on what a solver.tolerance may pick [env POLBRDF_MAX_STREAMS; default 128].
     #[arg(long)]
     pub max_streams: Option<usize>,
     /// Most layers per spec [env POLBRDF_MAX_LAYERS; default 16].
@@ -46,6 +46,15 @@ pub struct ServeArgs {
     /// Longest expansion series of an expansion scatterer [env POLBRDF_MAX_EXPANSION_TERMS; default 10000].
     #[arg(long)]
     pub max_expansion_terms: Option<usize>,
+    /// Largest Mie size parameter 2 pi r n_host / lambda [env POLBRDF_MAX_SIZE_PARAMETER; default 2000].
+    #[arg(long)]
+    pub max_size_parameter: Option<f64>,
+    /// Most values (W x Ti x To x P x 16) of one dense table export [env POLBRDF_MAX_DENSE_VALUES; default 64000000].
+    #[arg(long)]
+    pub max_dense_values: Option<usize>,
+    /// Most direction pairs of one POST .../eval [env POLBRDF_MAX_EVAL_POINTS; default 100000].
+    #[arg(long)]
+    pub max_eval_points: Option<usize>,
     /// Bearer token required for POST (prefer the env var POLBRDF_TOKEN: flags are visible in ps).
     #[arg(long)]
     pub token: Option<String>,
@@ -139,6 +148,21 @@ pub fn config_from(
     }
     if let Some(t) = n(args.max_expansion_terms, "max-expansion-terms", 1, 100_000)? {
         c.limits.max_expansion_terms = t;
+    }
+    if let Some(x) = pick(args.max_size_parameter, "max-size-parameter", env)? {
+        if !(x.is_finite() && (1.0..=crate::physics::mie::SIZE_PARAMETER_MAX).contains(&x)) {
+            return Err(format!(
+                "--max-size-parameter = {x} is outside [1, {:e}]",
+                crate::physics::mie::SIZE_PARAMETER_MAX
+            ));
+        }
+        c.limits.max_size_parameter = x;
+    }
+    if let Some(d) = n(args.max_dense_values, "max-dense-values", 16, 1 << 34)? {
+        c.limits.max_dense_values = d;
+    }
+    if let Some(p) = n(args.max_eval_points, "max-eval-points", 1, 10_000_000)? {
+        c.limits.max_eval_points = p;
     }
     c.token = pick(args.token.clone(), "token", env)?;
     if c.token.as_deref().is_some_and(|t| t.trim().is_empty()) {

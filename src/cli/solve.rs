@@ -161,6 +161,7 @@ pub fn run(
                     &set.mu,
                     t,
                     spec::MAX_STREAMS,
+                    &|_| {},
                 ),
             }
             .map_err(|e| e.to_string())?;

@@ -7,12 +7,13 @@ use crate::spec::{self, ScattererSpec, Spec, canonical};
 use crate::storage::{JobRow, Status, rfc3339};
 use axum::Json;
 use axum::body::Bytes;
-use axum::extract::rejection::{BytesRejection, FailedToBufferBody};
-use axum::extract::{Path, State};
+use axum::extract::rejection::{BytesRejection, FailedToBufferBody, QueryRejection};
+use axum::extract::{Path, Query, State};
 use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
-use serde::Serialize;
-use utoipa::ToSchema;
+use serde::{Deserialize, Serialize};
+use sha2::Digest;
+use utoipa::{IntoParams, ToSchema};
 
 /// A material spec (docs/spec.md).
 #[derive(ToSchema)]
@@ -154,7 +155,8 @@ pub struct Accepted {
 }
 
 /// Check the service caps (`--max-streams`, `--max-layers`,
-/// `--max-wavelengths`, `--max-expansion-terms`) on a parsed spec.
+/// `--max-wavelengths`, `--max-expansion-terms`, `--max-size-parameter`) on
+/// a parsed spec, before any work starts.
 pub fn check_limits(spec: &Spec, limits: &super::config::Limits) -> Result<(), ApiError> {
     let over = |path: String, message: String| ApiError::LimitExceeded { path, message };
     if spec.layers.len() > limits.max_layers {
@@ -187,6 +189,21 @@ pub fn check_limits(spec: &Spec, limits: &super::config::Limits) -> Result<(), A
             format!(
                 "{n} is outside this service's allowed range [1, {}] (--max-streams)",
                 limits.max_streams
+            ),
+        ));
+    }
+    let x = crate::spec::max_size_parameter(spec);
+    if x > limits.max_size_parameter {
+        let i = spec
+            .layers
+            .iter()
+            .position(|l| matches!(l.scatterer, ScattererSpec::Mie(_)))
+            .unwrap_or(0);
+        return Err(over(
+            format!("layers[{i}].scatterer.mie"),
+            format!(
+                "the Mie size parameter 2π r n_host/λ reaches {x:.1} (largest radius at the shortest wavelength), over this service's limit {} (--max-size-parameter)",
+                limits.max_size_parameter
             ),
         ));
     }
@@ -380,13 +397,123 @@ fn none_match(headers: &HeaderMap, digest: &str) -> bool {
 /// Immutable results: cacheable by any HTTP cache for a year.
 pub const IMMUTABLE: &str = "public, max-age=31536000, immutable";
 
-/// The result bytes of a done job.
+/// Formats of `GET …/table`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize, ToSchema)]
+#[serde(rename_all = "lowercase")]
+pub enum TableFormat {
+    /// The stored table (docs/table-format.md): Fourier coefficients on the
+    /// polar grid, lossless, with the specular term and metadata.
+    #[default]
+    Binary,
+    /// NumPy `.npy`, shape `(W, Ti, To, P, 4, 4)` on a regular grid
+    /// (`polbrdf export --format npy`).
+    Npy,
+    /// JSON: metadata, axes, shape and the same dense values (flat, C order).
+    Json,
+}
+
+/// Element type of `format=npy`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize, ToSchema)]
+#[serde(rename_all = "lowercase")]
+pub enum DenseType {
+    /// float32.
+    #[default]
+    F32,
+    /// float64.
+    F64,
+}
+
+/// Query of `GET …/table`.
+#[derive(Clone, Debug, Default, Deserialize, IntoParams)]
+#[serde(deny_unknown_fields)]
+#[into_params(parameter_in = Query)]
+pub struct TableQuery {
+    /// `binary` (default), `npy` or `json`.
+    pub format: Option<TableFormat>,
+    /// Element type of `npy`: `f32` (default) or `f64`.
+    pub dtype: Option<DenseType>,
+    /// Polar angles of the dense grid (midpoints of equal steps of 0..90°,
+    /// for both directions; default 51, the seed's).
+    pub theta_count: Option<usize>,
+    /// Azimuths `φ_o − φ_i` of the dense grid, 0..360° inclusive (default 61).
+    pub phi_count: Option<usize>,
+}
+
+/// A dense export of a parsed table (npy or JSON), checked against
+/// `--max-dense-values` before any work.
+fn dense_bytes(
+    table: &crate::brdf::Table,
+    q: &TableQuery,
+    format: TableFormat,
+    max_values: usize,
+) -> Result<(Vec<u8>, &'static str), ApiError> {
+    use crate::brdf::export::{self, DenseGrid, NpyType};
+    let invalid = |path: &str, message: String| ApiError::InvalidQuery {
+        path: path.into(),
+        message,
+    };
+    let thetas = q.theta_count.unwrap_or(51);
+    let phis = q.phi_count.unwrap_or(61);
+    let grid =
+        DenseGrid::regular(thetas, phis).map_err(|e| invalid("theta_count", e.to_string()))?;
+    let values = grid
+        .values_per_wavelength()
+        .saturating_mul(table.wavelengths.len());
+    if values > max_values {
+        return Err(invalid(
+            "theta_count",
+            format!(
+                "{} wavelengths x {thetas} x {thetas} x {phis} x 16 = {values} values exceed this service's limit of {max_values} per export (--max-dense-values); ask for fewer angles",
+                table.wavelengths.len()
+            ),
+        ));
+    }
+    if q.dtype.is_some() && format != TableFormat::Npy {
+        return Err(invalid("dtype", "dtype applies to format=npy only".into()));
+    }
+    let d = export::dense(table, &grid);
+    match format {
+        TableFormat::Npy => {
+            let ty = match q.dtype.unwrap_or_default() {
+                DenseType::F32 => NpyType::F32,
+                DenseType::F64 => NpyType::F64,
+            };
+            let bytes = export::npy_bytes(&d.shape(), &d.data, ty)
+                .map_err(|e| ApiError::Internal(e.to_string()))?;
+            Ok((bytes, "application/x-npy"))
+        }
+        _ => {
+            let v = serde_json::json!({
+                "id": table.metadata.spec_hash,
+                "metadata": table.metadata,
+                "units": "1/sr",
+                "frames": export::FRAMES,
+                "shape": d.shape(),
+                "order": "C: wavelength, theta_i, theta_o, phi, row (outgoing Stokes), column (incident Stokes)",
+                "axes": {
+                    "wavelength_nm": d.wavelength_nm,
+                    "theta_i_deg": grid.theta_i_deg,
+                    "theta_o_deg": grid.theta_o_deg,
+                    "phi_deg": grid.phi_deg,
+                    "phi_note": "phi = phi_o - phi_i (graphics convention, phi_i = 0; 180 = mirror side)",
+                },
+                "specular_note": "the specular delta of a mirror base is not part of dense values; see the binary table or eval",
+                "data": d.data,
+            });
+            Ok((serde_json::to_vec(&v).expect("JSON"), "application/json"))
+        }
+    }
+}
+
+/// The result bytes of a done job, or a dense export of them.
 ///
-/// The ETag is the SHA-256 of the bytes; results never change, so they are
-/// served `immutable` and `If-None-Match` gives 304. HEAD is supported. The
-/// stored bytes are verified against their digest on every read: a missing
-/// or corrupt blob is never served; the job is queued again (409 until it is
-/// done).
+/// `format=binary` (default) serves the stored table; `npy` and `json` a
+/// dense regular grid (`theta_count` × `theta_count` × `phi_count`, default
+/// the seed's 51 × 51 × 61) of the Mueller BRDF. The ETag is the SHA-256 of
+/// the bytes served; results never change, so they are served `immutable`
+/// and `If-None-Match` gives 304. HEAD is supported. The stored bytes are
+/// verified against their digest on every read: a missing or corrupt blob
+/// is never served; the job is queued again (409 until it is done).
 #[utoipa::path(
     get,
     path = "/v1/brdfs/{id}/table",
@@ -394,9 +521,10 @@ pub const IMMUTABLE: &str = "public, max-age=31536000, immutable";
     params(
         ("id" = String, Path, description = "Spec id"),
         ("If-None-Match" = Option<String>, Header, description = "ETag(s) the client holds"),
+        TableQuery,
     ),
     responses(
-        (status = 200, description = "The BRDF table (docs/table-format.md), Content-Type application/vnd.polbrdf.table",
+        (status = 200, description = "The BRDF table (docs/table-format.md), Content-Type application/vnd.polbrdf.table; or with format=npy (application/x-npy) or format=json (application/json) a dense export",
          headers(("ETag" = String, description = "\"<sha256 of the bytes>\""),
                  ("Cache-Control" = String, description = "public, max-age=31536000, immutable"))),
         (status = 304, description = "The client's copy is current",
@@ -405,6 +533,7 @@ pub const IMMUTABLE: &str = "public, max-age=31536000, immutable";
         (status = 404, description = "Unknown id", body = Problem, content_type = "application/problem+json"),
         (status = 409, description = "Not done yet (queued, running, or being solved again), or failed", body = Problem, content_type = "application/problem+json",
          headers(("Retry-After" = u64, description = "Seconds (not ready)"))),
+        (status = 422, description = "Unknown format or parameter, or a dense grid over --max-dense-values; `path` names the parameter", body = Problem, content_type = "application/problem+json"),
     ),
     security((), ("bearer" = []))
 )]
@@ -412,7 +541,46 @@ pub async fn get_table(
     State(state): State<AppState>,
     Path(id): Path<String>,
     headers: HeaderMap,
+    query: Result<Query<TableQuery>, QueryRejection>,
 ) -> Result<Response, ApiError> {
+    let Query(q) = query.map_err(|e| ApiError::InvalidQuery {
+        path: "query".into(),
+        message: format!(
+            "{}; allowed: format=binary|npy|json, dtype=f32|f64 (npy), theta_count, phi_count",
+            e.body_text()
+        ),
+    })?;
+    let format = q.format.unwrap_or_default();
+    if format != TableFormat::Binary {
+        let (_, table) = super::eval::table_of(&state, &id).await?;
+        let max = state.0.config.limits.max_dense_values;
+        let (bytes, media) =
+            tokio::task::spawn_blocking(move || dense_bytes(&table, &q, format, max))
+                .await
+                .map_err(|e| ApiError::Internal(e.to_string()))??;
+        let digest: String = sha2::Sha256::digest(&bytes)
+            .iter()
+            .map(|b| format!("{b:02x}"))
+            .collect();
+        let mut res = if none_match(&headers, &digest) {
+            StatusCode::NOT_MODIFIED.into_response()
+        } else {
+            let mut r = bytes.into_response();
+            r.headers_mut()
+                .insert(header::CONTENT_TYPE, HeaderValue::from_static(media));
+            r
+        };
+        let h = res.headers_mut();
+        h.insert(header::ETAG, etag_of(&digest));
+        h.insert(header::CACHE_CONTROL, HeaderValue::from_static(IMMUTABLE));
+        return Ok(res);
+    }
+    if q.dtype.is_some() || q.theta_count.is_some() || q.phi_count.is_some() {
+        return Err(ApiError::InvalidQuery {
+            path: "format".into(),
+            message: "dtype, theta_count and phi_count apply to format=npy|json only".into(),
+        });
+    }
     let row = row_of(&state, &id).await?;
     require_done(&row, &id)?;
     let digest = row.digest.clone().unwrap_or_default();

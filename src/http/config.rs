@@ -51,8 +51,9 @@ pub struct Config {
 /// Caps on what one spec may ask for.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Limits {
-    /// Explicit `solver.streams` (a `solver.tolerance` may pick up to the
-    /// spec's own limit, `spec::MAX_STREAMS`).
+    /// Streams: explicit `solver.streams` above it are refused; a
+    /// `solver.tolerance` may pick up to it (not reaching the tolerance
+    /// there fails the job with the solver's `ToleranceNotMet`).
     pub max_streams: usize,
     /// Number of layers.
     pub max_layers: usize,
@@ -60,6 +61,13 @@ pub struct Limits {
     pub max_wavelengths: usize,
     /// Length of each expansion series of an `expansion` scatterer.
     pub max_expansion_terms: usize,
+    /// Largest Mie size parameter `2π r n_host/λ` (`spec::max_size_parameter`;
+    /// the Mie series and expansion grow with it).
+    pub max_size_parameter: f64,
+    /// Values (`W·Ti·To·P·16`) of one dense export (`GET …/table?format=npy|json`).
+    pub max_dense_values: usize,
+    /// Direction pairs of one `POST …/eval`.
+    pub max_eval_points: usize,
 }
 
 impl Default for Limits {
@@ -69,6 +77,9 @@ impl Default for Limits {
             max_layers: 16,
             max_wavelengths: 128,
             max_expansion_terms: 10_000,
+            max_size_parameter: 2_000.0,
+            max_dense_values: 64_000_000,
+            max_eval_points: 100_000,
         }
     }
 }

@@ -20,9 +20,6 @@ use std::collections::VecDeque;
 use std::sync::{Arc, Mutex};
 use utoipa::{IntoParams, ToSchema};
 
-/// Most direction pairs per `POST …/eval`.
-pub const MAX_EVAL_POINTS: usize = 100_000;
-
 /// Parsed tables kept in memory, by digest (most recently used last), and
 /// the done rows that point at them, by id: a done result never changes
 /// (the id is the spec's hash and the solve is deterministic), so a hot
@@ -109,7 +106,7 @@ pub struct EvalPoint {
 #[derive(Clone, Debug, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
 pub struct EvalRequest {
-    /// Direction pairs (at most 100000).
+    /// Direction pairs (at most `--max-eval-points`, default 100000).
     pub points: Vec<EvalPoint>,
     /// Vacuum wavelength (nm); may be omitted for a one-wavelength table.
     #[serde(default)]
@@ -150,7 +147,7 @@ pub struct EvalResponse {
 }
 
 /// The parsed table of a done row (verified bytes, cached by digest).
-async fn table_of(state: &AppState, id: &str) -> Result<(JobRow, Arc<Table>), ApiError> {
+pub(super) async fn table_of(state: &AppState, id: &str) -> Result<(JobRow, Arc<Table>), ApiError> {
     if !canonical::is_id(id) {
         return Err(ApiError::NotFound(id.to_string()));
     }
@@ -326,12 +323,13 @@ pub async fn post_eval(
             message: e.inner().to_string(),
         }
     })?;
-    if req.points.len() > MAX_EVAL_POINTS {
+    if req.points.len() > state.0.config.limits.max_eval_points {
         return Err(ApiError::InvalidQuery {
             path: "points".into(),
             message: format!(
-                "{} points exceed the limit of {MAX_EVAL_POINTS} per request",
-                req.points.len()
+                "{} points exceed this service's limit of {} per request (--max-eval-points)",
+                req.points.len(),
+                state.0.config.limits.max_eval_points
             ),
         });
     }

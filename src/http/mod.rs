@@ -59,7 +59,7 @@ pub struct AppState(pub Arc<App>);
         license(name = "MIT OR Apache-2.0")
     ),
     modifiers(&BearerAuth),
-    components(schemas(crate::jobs::Problem)),
+    components(schemas(crate::jobs::Problem, brdfs::TableFormat, brdfs::DenseType)),
     tags(
         (name = "brdfs", description = "Submit specs, follow jobs, fetch results"),
         (name = "operations", description = "Health, readiness, metrics")
@@ -206,6 +206,7 @@ pub async fn serve(
             workers: config.workers,
             max_queue: config.max_queue,
             max_attempts: config.max_attempts,
+            max_streams: config.limits.max_streams,
         },
     )
     .await?;

@@ -48,6 +48,8 @@ pub struct JobsConfig {
     pub max_queue: usize,
     /// Starts of one job before it is given up (crash-loop guard).
     pub max_attempts: i64,
+    /// Most streams a `solver.tolerance` may pick (`--max-streams`).
+    pub max_streams: usize,
 }
 
 /// Why a submission was not accepted.
@@ -117,7 +119,14 @@ impl Flight {
 /// Events from a solve to its async task.
 enum Event {
     Started,
-    Wavelength { done: usize, total: usize, ms: f64 },
+    Wavelength {
+        done: usize,
+        total: usize,
+        ms: f64,
+    },
+    /// Fraction of the whole job done (approximate, per batch of Fourier
+    /// orders).
+    Progress(f64),
 }
 
 /// Outcome of a solve.
@@ -436,6 +445,7 @@ impl Jobs {
         let blobs = self.blobs.clone();
         let stopping = self.stopping.clone();
         let solve_span = span.clone();
+        let max_streams = self.config.max_streams;
         self.pool.spawn(move || {
             let _entered = solve_span.enter();
             if stopping.load(Ordering::SeqCst) {
@@ -445,7 +455,17 @@ impl Jobs {
             let _ = event_tx.send(Event::Started);
             let t0 = Instant::now();
             let solved = catch_unwind(AssertUnwindSafe(|| {
-                result::solve(&spec, &mut |done, total, ms| {
+                // One event per percent at most: the row is written per event.
+                let last = std::sync::Mutex::new(0.0_f64);
+                let progress_tx = event_tx.clone();
+                let on_progress = move |x: f64| {
+                    let mut last = last.lock().expect("progress lock");
+                    if x >= *last + 0.01 {
+                        *last = x;
+                        let _ = progress_tx.send(Event::Progress(x));
+                    }
+                };
+                result::solve(&spec, max_streams, &on_progress, &mut |done, total, ms| {
                     tracing::debug!(done, total, ms, "wavelength solved");
                     let _ = event_tx.send(Event::Wavelength { done, total, ms });
                 })
@@ -506,15 +526,17 @@ impl Jobs {
     ) {
         let mut started = false;
         let mut wall = Vec::new();
+        let mut progress = 0.0;
         let outcome = loop {
             tokio::select! {
                 biased;
-                Some(ev) = events.recv() => self.on_event(id, flight, ev, &mut started, &mut wall).await,
+                Some(ev) = events.recv() => self.on_event(id, flight, ev, &mut started, &mut wall, &mut progress).await,
                 o = &mut done => break o,
             }
         };
         while let Ok(ev) = events.try_recv() {
-            self.on_event(id, flight, ev, &mut started, &mut wall).await;
+            self.on_event(id, flight, ev, &mut started, &mut wall, &mut progress)
+                .await;
         }
         let now = now_ms();
         let written = match outcome {
@@ -600,6 +622,7 @@ impl Jobs {
         ev: Event,
         started: &mut bool,
         wall: &mut Vec<f64>,
+        progress: &mut f64,
     ) {
         let now = now_ms();
         let r = match ev {
@@ -614,10 +637,15 @@ impl Jobs {
             }
             Event::Wavelength { done, total, ms } => {
                 wall.push(ms);
-                self.index
-                    .progress(id, done as f64 / total.max(1) as f64, wall, now)
-                    .await
+                let x = done as f64 / total.max(1) as f64;
+                *progress = progress.max(x);
+                self.index.progress(id, *progress, wall, now).await
             }
+            Event::Progress(x) if x > *progress => {
+                *progress = x.min(1.0);
+                self.index.progress(id, *progress, wall, now).await
+            }
+            Event::Progress(_) => Ok(()),
         };
         if let Err(e) = r {
             tracing::error!(error = %e, "could not record job progress");

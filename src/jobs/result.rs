@@ -12,6 +12,7 @@
 //! fields are 0), so a re-solve reproduces the same digest.
 
 use crate::brdf::format::{self, DataType};
+use crate::brdf::table::BuildOptions;
 use crate::brdf::{BrdfError, PolarGrid, Table};
 use crate::solver;
 use crate::spec::{self, Spec, canonical};
@@ -54,11 +55,14 @@ pub struct SolveFailure {
 /// Solve every wavelength of a spec (one [`Table::from_spec`] per
 /// wavelength, so that progress can be reported, then one table with the
 /// per-wavelength streams and error estimates in its metadata);
-/// `on_wavelength(done, total, ms)` is called after each wavelength. A
-/// `solver.tolerance` may pick up to [`spec::MAX_STREAMS`] streams (the
-/// table builder's cap).
+/// `on_wavelength(done, total, ms)` is called after each wavelength and
+/// `on_progress(fraction of the job)` after each batch of Fourier orders
+/// (approximate, not always increasing). A `solver.tolerance` may pick up to
+/// `max_streams` streams; not reaching it there is a solver failure.
 pub fn solve(
     spec: &Spec,
+    max_streams: usize,
+    on_progress: &(dyn Fn(f64) + Sync),
     on_wavelength: &mut dyn FnMut(usize, usize, f64),
 ) -> Result<Solved, SolveFailure> {
     let grid = PolarGrid::default();
@@ -73,7 +77,12 @@ pub fn solve(
             wavelengths_nm: wl.map(|w| vec![w]),
             ..spec.clone()
         };
-        let mut single = Table::from_spec(&one, grid.clone()).map_err(|e| failure(e, wl))?;
+        let options = BuildOptions {
+            max_streams,
+            on_progress: &|_, _, x| on_progress((k as f64 + x) / total as f64),
+        };
+        let mut single =
+            Table::from_spec_with(&one, grid.clone(), &options).map_err(|e| failure(e, wl))?;
         let (Some(mut block), Some(meta)) =
             (single.wavelengths.pop(), single.metadata.wavelengths.pop())
         else {

@@ -153,6 +153,16 @@ impl SizeDistribution {
 
     /// Radius (µm) below which a fraction `p` of the `r^k`-weighted
     /// distribution lies (`lower = true`), or above which it lies.
+    /// The upper cut `r_max` of the radius integral (module doc) for `k`
+    /// size parameter per µm and tail fraction `eps`: the largest radius
+    /// whose Mie series is summed, so `k r_max` is the size parameter that
+    /// sets the cost.
+    pub fn upper_cut_um(&self, k_per_um: f64, eps: f64) -> f64 {
+        let r4 = self.weighted_quantile(4.0, eps, false);
+        let r6 = self.weighted_quantile(6.0, eps, false);
+        r4.max(r6.min(2.0 / k_per_um))
+    }
+
     fn weighted_quantile(&self, k: f64, p: f64, lower: bool) -> f64 {
         match *self {
             Self::LogNormal { r_g_um, sigma_g } => {
@@ -319,9 +329,7 @@ impl<'a> Integrator<'a> {
         let (k, m) = mie::wavenumber_and_index(particle, n_host, wavelength_nm)?;
         let eps = quad.tail_fraction;
         let r_min = dist.weighted_quantile(2.0, eps, true);
-        let r4 = dist.weighted_quantile(4.0, eps, false);
-        let r6 = dist.weighted_quantile(6.0, eps, false);
-        let r_max = r4.max(r6.min(2.0 / k));
+        let r_max = dist.upper_cut_um(k, eps);
         let (x_min, x_max) = (k * r_min, k * r_max);
         let range = |r: &str, v: f64| {
             format!(

@@ -14,7 +14,7 @@
 //! Cost: the two coarse solves cost about `(1/8 + 1/64)` of the fine one
 //! (a solve scales like `N³`).
 
-use super::{Problem, ReflectionFourier, SolverError, reflection};
+use super::{Problem, ReflectionFourier, SolverError, reflection, reflection_observed};
 
 /// Propagation-azimuth differences of the probe set (radians).
 const PROBE_AZIMUTHS: [f64; 5] = [
@@ -113,29 +113,52 @@ pub fn reflection_with_estimate(
 
 /// The cheapest stream count `N = 4, 8, 16, …, max_streams` whose
 /// estimated error is within `tolerance`; each doubling reuses the previous
-/// solves. Returns the last solve (with its estimate) if the tolerance is
-/// not reached by `max_streams`.
+/// solves. [`SolverError::ToleranceNotMet`] if the tolerance is not reached
+/// by `max_streams` (never a silently less accurate result).
+///
+/// `on_progress` gets an approximate fraction in `[0, 1)` after each batch
+/// of Fourier orders: with `k` stream levels done and the current one a
+/// fraction `x` through its orders, `(k + x)/(k + 2)` (one more doubling
+/// assumed to come). It is not monotone across levels; callers clamp.
 pub fn reflection_to_tolerance(
     problem: &Problem,
     mu_user: &[f64],
     tolerance: f64,
     max_streams: usize,
+    on_progress: &(dyn Fn(f64) + Sync),
 ) -> Result<Estimated, SolverError> {
     if !(tolerance > 0.0 && tolerance.is_finite()) {
         return Err(SolverError::Invalid(format!(
             "solver.tolerance = {tolerance} must be a positive number"
         )));
     }
+    if max_streams < 8 {
+        return Err(SolverError::Invalid(format!(
+            "solver.tolerance needs solves at 2, 4 and 8 streams, but at most {max_streams} are allowed"
+        )));
+    }
     let mut probes: Vec<(usize, Vec<f64>)> = Vec::new();
     let mut n = 2;
     loop {
-        let r = reflection(&with_streams(problem, n), mu_user)?;
+        let levels_done = probes.len() as f64;
+        let report = |done: usize, bound: usize| {
+            let within = done as f64 / bound.max(1) as f64;
+            on_progress((levels_done + within) / (levels_done + 2.0));
+        };
+        let r = reflection_observed(&with_streams(problem, n), mu_user, &report)?;
         probes.push((n, probe(&r)));
         if probes.len() >= 3 {
             let k = probes.len();
             let (est, contraction) =
                 tail_estimate(&probes[k - 3].1, &probes[k - 2].1, &probes[k - 1].1);
-            if est <= tolerance || 2 * n > max_streams {
+            if est > tolerance && 2 * n > max_streams {
+                return Err(SolverError::ToleranceNotMet {
+                    tolerance,
+                    estimate: est,
+                    streams: n,
+                });
+            }
+            if est <= tolerance {
                 return Ok(Estimated {
                     reflection: r,
                     estimate: ErrorEstimate {

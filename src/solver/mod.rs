@@ -131,6 +131,18 @@ pub enum SolverError {
     /// A non-finite number appeared (never returned silently).
     #[error("numerical failure: {0}")]
     NonFinite(String),
+    /// `solver.tolerance` was not reached within the allowed streams.
+    #[error(
+        "solver.tolerance {tolerance:e} was not reached: the estimated error at {streams} streams (the most allowed) is {estimate:.2e}; raise the stream cap or loosen the tolerance"
+    )]
+    ToleranceNotMet {
+        /// The requested tolerance (max error of f11 relative to max f11).
+        tolerance: f64,
+        /// The estimate reached at the largest allowed stream count.
+        estimate: f64,
+        /// That stream count.
+        streams: usize,
+    },
 }
 
 /// The Fourier coefficients of the reflected radiance for beams along user
@@ -507,9 +519,26 @@ fn validate(problem: &Problem, mu_user: &[f64]) -> Result<(), SolverError> {
     Ok(())
 }
 
+/// Progress of one solve: called on the solving thread after each batch of
+/// Fourier orders with `(orders done, upper bound on the orders)`. The bound
+/// is the expansion length; the Fourier series usually converges (and the
+/// solve ends) before it, so the ratio is a lower bound on the fraction done.
+pub type OnOrders<'a> = &'a (dyn Fn(usize, usize) + Sync);
+
 /// Reflection of the stack for beams and observers along the user cosines
 /// `mu_user` (each in `(0, 1]`), all Fourier orders.
 pub fn reflection(problem: &Problem, mu_user: &[f64]) -> Result<ReflectionFourier, SolverError> {
+    reflection_observed(problem, mu_user, &|_, _| {})
+}
+
+/// [`reflection`], reporting progress per batch of Fourier orders to
+/// `on_orders` (the caller decides what to do with it; the solver does no
+/// I/O).
+pub fn reflection_observed(
+    problem: &Problem,
+    mu_user: &[f64],
+    on_orders: OnOrders,
+) -> Result<ReflectionFourier, SolverError> {
     validate(problem, mu_user)?;
     let original = problem;
     let truncated = if problem.settings.delta_m {
@@ -609,7 +638,9 @@ pub fn reflection(problem: &Problem, mu_user: &[f64]) -> Result<ReflectionFourie
                 break 'orders;
             }
         }
+        on_orders(rho.len(), orders);
     }
+    on_orders(orders, orders);
     let tau_total: f64 = original
         .layers
         .iter()

@@ -598,6 +598,36 @@ fn to_psd(s: &SizeDistributionSpec) -> crate::physics::psd::SizeDistribution {
     }
 }
 
+/// The largest Mie size parameter `x = 2π r n_host/λ` the spec asks for, over
+/// its Mie layers and wavelengths (for a size distribution, at the upper cut
+/// of its radius integral, `psd::SizeDistribution::upper_cut_um`); 0 with
+/// no Mie layer. It sets the cost of the Mie series (≈ x terms) and of the
+/// expansion (≈ 2x terms), so the service caps it before queueing.
+pub fn max_size_parameter(spec: &Spec) -> f64 {
+    let Some(wavelengths) = &spec.wavelengths_nm else {
+        return 0.0;
+    };
+    let Some(lambda_min_nm) = wavelengths.iter().copied().reduce(f64::min) else {
+        return 0.0;
+    };
+    let mut x_max: f64 = 0.0;
+    for layer in &spec.layers {
+        if let ScattererSpec::Mie(m) = &layer.scatterer {
+            let k_per_um = 2.0 * std::f64::consts::PI * 1000.0 * m.host_index / lambda_min_nm;
+            let r_um = match (&m.radius_um, &m.size_distribution) {
+                (Some(r), _) => *r,
+                (None, Some(d)) => to_psd(d).upper_cut_um(
+                    k_per_um,
+                    crate::physics::psd::PsdQuadrature::default().tail_fraction,
+                ),
+                (None, None) => 0.0,
+            };
+            x_max = x_max.max(k_per_um * r_um);
+        }
+    }
+    x_max
+}
+
 /// The solver problem at one wavelength (`None` for a wavelength-free spec).
 pub fn problem(spec: &Spec, wavelength_nm: Option<f64>) -> Result<Problem, SpecError> {
     let mut layers = Vec::with_capacity(spec.layers.len());

@@ -1,7 +1,9 @@
 //! `polbrdf convergence SPEC.json [--json] [--plot out.svg]`: error against
-//! run time. Solves the spec at increasing stream counts, compares each with
-//! a high-resolution reference on a probe grid, and reports the error the
-//! solver itself estimated next to the true one.
+//! run time. Solves the spec in three families of settings (streams with the
+//! spec's truncation; streams without delta-M; Fourier orders at the largest
+//! stream count), compares each with a high-resolution reference on a probe
+//! grid, and reports the error the solver itself estimated next to the true
+//! one.
 
 use crate::solver::{self, Problem, ReflectionFourier};
 use crate::spec;
@@ -13,10 +15,12 @@ use std::time::Instant;
 pub struct ConvergenceArgs {
     /// The material spec (its first wavelength is used).
     spec: String,
-    /// Stream counts (the reference uses twice the largest, with a thin
-    /// start layer).
+    /// Stream counts.
     #[arg(long, value_delimiter = ',', default_value = "4,8,16,32")]
     streams: Vec<usize>,
+    /// Streams of the reference solve [default: twice the largest of --streams].
+    #[arg(long)]
+    reference_streams: Option<usize>,
     /// Print {"rows": [...]} as JSON.
     #[arg(long)]
     json: bool,
@@ -58,6 +62,51 @@ fn with_streams(p: &Problem, n: usize) -> Problem {
     q
 }
 
+/// One row: a solve at `problem`'s settings, timed, compared with the
+/// reference (`scale` = max f11 of the reference).
+fn row(
+    family: &str,
+    p: &Problem,
+    mu: &[f64],
+    dphi: &[f64],
+    reference: &[(f64, f64)],
+    scale: f64,
+    estimate: bool,
+) -> Result<Value, String> {
+    let t0 = Instant::now();
+    let r = solver::reflection(p, mu).map_err(|e| e.to_string())?;
+    let ms = t0.elapsed().as_secs_f64() * 1e3;
+    let est = if estimate {
+        json!(
+            solver::accuracy::reflection_with_estimate(p, mu)
+                .map_err(|e| e.to_string())?
+                .estimate
+                .max_err_f11
+        )
+    } else {
+        Value::Null
+    };
+    let got = sample(&r, dphi);
+    let (mut max_err, mut sq, mut max_dop) = (0.0f64, 0.0f64, 0.0f64);
+    for (g, e) in got.iter().zip(reference) {
+        let d = (g.0 - e.0).abs();
+        max_err = max_err.max(d);
+        sq += d * d;
+        max_dop = max_dop.max((g.1 - e.1).abs());
+    }
+    Ok(json!({
+        "family": family,
+        "streams": p.settings.streams,
+        "fourier_orders": r.rho.len(),
+        "delta_m": p.settings.delta_m,
+        "wall_time_ms": ms,
+        "max_err_f11": max_err / scale,
+        "rms_err_f11": (sq / got.len() as f64).sqrt() / scale,
+        "max_err_dop": max_dop,
+        "estimated_err": est,
+    }))
+}
+
 pub fn run(a: &ConvergenceArgs) -> Result<Value, String> {
     let text = std::fs::read_to_string(&a.spec).map_err(|e| format!("{}: {e}", a.spec))?;
     let spec = spec::parse(&text).map_err(|e| format!("{}: {e}", a.spec))?;
@@ -65,64 +114,134 @@ pub fn run(a: &ConvergenceArgs) -> Result<Value, String> {
     let problem = spec::problem(&spec, wl).map_err(|e| format!("{}: {e}", a.spec))?;
     let (mu, dphi) = probe_grid();
     let max_streams = *a.streams.iter().max().ok_or("--streams is empty")?;
-    let mut reference_problem = with_streams(&problem, 2 * max_streams);
-    reference_problem.settings.start_factor = 1e-3;
+    if a.streams.contains(&0) {
+        return Err("--streams: stream counts must be ≥ 1".into());
+    }
+    let reference_streams = a.reference_streams.unwrap_or(2 * max_streams);
+    if reference_streams <= max_streams {
+        return Err(format!(
+            "--reference-streams {reference_streams} must exceed the largest of --streams ({max_streams})"
+        ));
+    }
+    let reference_problem = with_streams(&problem, reference_streams);
     let reference = sample(
         &solver::reflection(&reference_problem, &mu).map_err(|e| e.to_string())?,
         &dphi,
     );
     let scale = reference.iter().map(|x| x.0).fold(0.0, f64::max);
     let mut rows = Vec::new();
+    // Family 1: streams, with the spec's truncation (delta-M + single-
+    // scattering correction), with the solver's own estimate.
     for &n in &a.streams {
-        let p = with_streams(&problem, n);
-        let t0 = Instant::now();
-        let r = solver::reflection(&p, &mu).map_err(|e| e.to_string())?;
-        let ms = t0.elapsed().as_secs_f64() * 1e3;
-        let est = solver::accuracy::reflection_with_estimate(&p, &mu).map_err(|e| e.to_string())?;
-        let got = sample(&r, &dphi);
-        let (mut max_err, mut sq, mut max_dop) = (0.0f64, 0.0f64, 0.0f64);
-        for (g, e) in got.iter().zip(&reference) {
-            let d = (g.0 - e.0).abs();
-            max_err = max_err.max(d);
-            sq += d * d;
-            max_dop = max_dop.max((g.1 - e.1).abs());
+        rows.push(row(
+            "streams",
+            &with_streams(&problem, n),
+            &mu,
+            &dphi,
+            &reference,
+            scale,
+            true,
+        )?);
+    }
+    // Family 2: streams without truncation (what delta-M buys).
+    if problem.settings.delta_m {
+        for &n in &a.streams {
+            let mut p = with_streams(&problem, n);
+            p.settings.delta_m = false;
+            rows.push(row(
+                "streams, no delta-M",
+                &p,
+                &mu,
+                &dphi,
+                &reference,
+                scale,
+                false,
+            )?);
         }
-        rows.push(json!({
-            "streams": n,
-            "fourier_orders": r.rho.len(),
-            "wall_time_ms": ms,
-            "max_err_f11": max_err / scale,
-            "rms_err_f11": (sq / got.len() as f64).sqrt() / scale,
-            "max_err_dop": max_dop,
-            "estimated_err": est.estimate.max_err_f11,
-        }));
+    }
+    // Family 3: Fourier orders 0..=m at the largest stream count.
+    let full_orders = rows
+        .iter()
+        .find(|r| r["family"] == "streams" && r["streams"] == max_streams)
+        .and_then(|r| r["fourier_orders"].as_u64())
+        .unwrap_or(1) as usize;
+    let mut m = 1;
+    while m < full_orders.saturating_sub(1) {
+        let mut p = with_streams(&problem, max_streams);
+        p.settings.max_order = Some(m);
+        rows.push(row(
+            "fourier orders",
+            &p,
+            &mu,
+            &dphi,
+            &reference,
+            scale,
+            false,
+        )?);
+        m *= 2;
     }
     if let Some(path) = &a.plot {
         std::fs::write(path, svg(&rows)).map_err(|e| format!("{path}: {e}"))?;
     }
     let _ = a.json; // the output is always JSON
     Ok(
-        json!({"rows": rows, "reference_streams": 2 * max_streams, "wavelength_nm": wl,
-              "probe": {"polar_angles": mu.len(), "azimuths": dphi.len()}}),
+        json!({"rows": rows, "reference_streams": reference_streams, "wavelength_nm": wl,
+              "probe": {"polar_angles": mu.len(), "azimuths": dphi.len()},
+              "errors": "relative to max f11 of the reference; DOP absolute, for unpolarized incident light",
+              "estimated_err": "the solver's a-posteriori estimate (solver::accuracy), for the streams family only"}),
     )
 }
 
-/// A minimal log-log chart of error against wall time: true max error and
-/// the solver's estimate, one point per stream count.
+/// A minimal log-log chart of error against wall time: the true max error
+/// of each family of settings and the solver's estimate (streams family),
+/// one point per setting.
 fn svg(rows: &[Value]) -> String {
-    let pts = |key: &str| -> Vec<(f64, f64, u64)> {
+    let pts = |family: &str, key: &str| -> Vec<(f64, f64, u64)> {
         rows.iter()
+            .filter(|r| r["family"] == family && r[key].is_number())
             .map(|r| {
                 (
                     r["wall_time_ms"].as_f64().unwrap_or(1.0).max(1e-3),
                     r[key].as_f64().unwrap_or(1e-16).max(1e-16),
-                    r["streams"].as_u64().unwrap_or(0),
+                    if family == "fourier orders" {
+                        r["fourier_orders"].as_u64().unwrap_or(0)
+                    } else {
+                        r["streams"].as_u64().unwrap_or(0)
+                    },
                 )
             })
             .collect()
     };
-    let (truth, est) = (pts("max_err_f11"), pts("estimated_err"));
-    let all: Vec<&(f64, f64, u64)> = truth.iter().chain(est.iter()).collect();
+    let series = [
+        (
+            pts("streams", "max_err_f11"),
+            "black",
+            "streams: true error",
+            "N=",
+        ),
+        (
+            pts("streams", "estimated_err"),
+            "red",
+            "streams: estimate",
+            "",
+        ),
+        (
+            pts("streams, no delta-M", "max_err_f11"),
+            "blue",
+            "streams, no delta-M",
+            "",
+        ),
+        (
+            pts("fourier orders", "max_err_f11"),
+            "green",
+            "Fourier orders",
+            "M=",
+        ),
+    ];
+    let all: Vec<&(f64, f64, u64)> = series.iter().flat_map(|s| s.0.iter()).collect();
+    if all.is_empty() {
+        return "<svg xmlns='http://www.w3.org/2000/svg'/>\n".into();
+    }
     let (tx0, tx1) = all.iter().fold((f64::MAX, f64::MIN), |(a, b), p| {
         (a.min(p.0.log10()), b.max(p.0.log10()))
     });
@@ -167,10 +286,11 @@ fn svg(rows: &[Value]) -> String {
         h / 2.0,
         h / 2.0
     );
-    for (series, colour, label, dy) in [
-        (&truth, "black", "true error", 0.0),
-        (&est, "red", "estimated", 16.0),
-    ] {
+    for (k, (series, colour, label, tag)) in series.iter().enumerate() {
+        if series.is_empty() {
+            continue;
+        }
+        let dy = 16.0 * k as f64;
         let path: Vec<String> = series
             .iter()
             .map(|p| format!("{:.1},{:.1}", px(p.0), py(p.1)))
@@ -185,9 +305,9 @@ fn svg(rows: &[Value]) -> String {
                 px(p.0),
                 py(p.1)
             );
-            if colour == "black" {
+            if !tag.is_empty() {
                 s += &format!(
-                    "<text x='{:.1}' y='{:.1}'>N={}</text>\n",
+                    "<text x='{:.1}' y='{:.1}' fill='{colour}'>{tag}{}</text>\n",
                     px(p.0) + 5.0,
                     py(p.1) - 5.0,
                     p.2
@@ -196,7 +316,7 @@ fn svg(rows: &[Value]) -> String {
         }
         s += &format!(
             "<text x='{}' y='{}' fill='{colour}'>{label}</text>\n",
-            w - m - 80.0,
+            w - m - 150.0,
             m + dy
         );
     }

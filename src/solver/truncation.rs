@@ -16,14 +16,23 @@
 //! (`β_1 > 0`) are truncated; others are kept whole.
 //!
 //! **Single-scattering correction** (Nakajima & Tanaka 1988, JQSRT 40, 51, the
-//! "TMS" method): the truncated solution gets single scattering wrong near the
-//! peak; the BRDF at user angles is corrected by
-//! `f = f_DOM' − f_ss' + f_ss`, where `f_ss` is the exact single-scattering
-//! BRDF of the original stack with the full phase matrix and `f_ss'` that of
-//! the scaled stack with the truncated one, both in closed form:
+//! "TMS" method, their eq. 41): the truncated solution gets single scattering
+//! wrong near the peak; the BRDF at user angles is corrected by
+//! `f = f_DOM' − f_ss' + f_TMS`, where `f_ss'` is the single-scattering BRDF
+//! of the scaled stack with the truncated phase matrix and `f_TMS` that of the
+//! **scaled** stack (`τ'`) with the full phase matrix and albedo
+//! `ω/(1 − ωf)`, both in closed form:
 //! `f_ss = Σ_k ω_k Z_k(Ω_o, Ω_i) e^{−τ_{top,k}(1/μ + 1/μ0)} (1 − e^{−τ_k(1/μ + 1/μ0)}) / (4π (μ + μ0))`
-//! with `Z` the geometric phase matrix (seed eq. 11). Paths that reflect at
-//! the base are not corrected.
+//! with `Z` the geometric phase matrix (seed eq. 11). In the scaled medium the
+//! forward peak is unscattered light, so a photon's first large-angle
+//! scattering happens at the scaled extinction; `f_TMS` counts the paths
+//! "forward peak(s), then one scattering" that the exact single scattering of
+//! the original stack (`ω`, `τ`) leaves out. For a thin layer both are the
+//! exact single scattering (`ω τ = ω/(1 − ωf) · τ'`); for thick layers they
+//! differ by up to `1/(1 − ωf)`, and the TMS form is what DISORT prints (its
+//! test cases 3–5 at exact backscatter differ by 0.3–2 % from the unscaled
+//! form, `tests/benchmark_disort.rs`). Paths that reflect at the base are not
+//! corrected.
 
 use super::phase::geometric_phase_matrix;
 use super::{Layer, Problem, SolverError, Thickness};
@@ -34,6 +43,8 @@ use crate::physics::stokes::Mueller;
 /// optical properties, depth of its top in both stacks.
 #[derive(Clone, Debug)]
 struct CorrectionLayer {
+    /// `ω/(1 − ωf)`: the TMS albedo of the full phase matrix in the scaled
+    /// stack (`ω` when the layer is not truncated).
     omega: f64,
     tau: f64,
     tau_top: f64,
@@ -67,7 +78,7 @@ pub fn delta_m(problem: &Problem) -> Result<Truncated, SolverError> {
     let keep = 2 * n; // terms l = 0 .. 2N-1
     let mut out = problem.clone();
     let mut corr = Vec::new();
-    let (mut top, mut top_t) = (0.0, 0.0);
+    let mut top_t = 0.0;
     let mut any = false;
     for (i, layer) in problem.layers.iter().enumerate() {
         let tau = match layer.thickness {
@@ -80,17 +91,18 @@ pub fn delta_m(problem: &Problem) -> Result<Truncated, SolverError> {
         // truncation would leave negative lobes in the phase function.
         let forward = c.beta.get(1).is_some_and(|&b| b > 0.0);
         if c.beta.len() <= keep || !forward {
+            // Not truncated: the TMS term and the scaled single scattering
+            // are the same numbers (both in the scaled stack) and cancel.
             corr.push(CorrectionLayer {
                 omega: layer.albedo,
                 tau,
-                tau_top: top,
+                tau_top: top_t,
                 coef: c.clone(),
                 omega_t: layer.albedo,
                 tau_t: tau,
                 tau_top_t: top_t,
                 coef_t: c.clone(),
             });
-            top += tau;
             top_t += tau;
             continue;
         }
@@ -156,16 +168,15 @@ pub fn delta_m(problem: &Problem) -> Result<Truncated, SolverError> {
             coef: coef_t.clone(),
         };
         corr.push(CorrectionLayer {
-            omega: w,
-            tau,
-            tau_top: top,
+            omega: w / (1.0 - w * f),
+            tau: tau_t,
+            tau_top: top_t,
             coef: c.clone(),
             omega_t,
             tau_t,
             tau_top_t: top_t,
             coef_t,
         });
-        top += tau;
         top_t += tau_t;
     }
     Ok(Truncated {

@@ -14,7 +14,7 @@
 
 use super::figure::{
     Dash, Figure, Legend, LinePanel, LobePanel, MapPanel, Panel, cell_polygon, decade_label,
-    linear_label, lobe_xy, map_xy, nice_ceil, wrap_words,
+    linear_label, lobe_xy, map_xy, nice_ceil, split_at_sharp_turns, thin_out, wrap_words,
 };
 use plotters::coord::Shift;
 use plotters::prelude::*;
@@ -51,6 +51,10 @@ const PALETTE: [RGBColor; 8] = [
     RGBColor(0, 0, 0),
     RGBColor(140, 140, 140),
 ];
+
+/// Turns sharper than this (degrees, in pixels) end a polyline piece
+/// ([`split_at_sharp_turns`]).
+const SHARP_TURN_DEG: f64 = 135.0;
 
 const GRID: RGBColor = RGBColor(225, 225, 225);
 const GUIDE: RGBColor = RGBColor(120, 120, 120);
@@ -247,6 +251,9 @@ fn line_panel<DB: DrawingBackend>(
         .light_line_style(RGBColor(245, 245, 245))
         .draw()
         .map_err(err)?;
+    let (pw, ph) = chart.plotting_area().dim_in_pixel();
+    let px = 1.5 * (x1 - x0) / pw.max(1) as f64;
+    let py = 1.5 * (p.y.hi - p.y.lo) / ph.max(1) as f64;
     for s in &p.series {
         let pts: Vec<(f64, f64)> = s
             .points
@@ -254,10 +261,20 @@ fn line_panel<DB: DrawingBackend>(
             .filter(|(x, y)| x.is_finite() && y.is_finite() && (!log || *x > 0.0))
             .map(|&(x, y)| (tx(x), y))
             .collect();
+        let pts = thin_out(&pts, px, py);
         let style = color(s.color).stroke_width(2);
+        let pieces = split_at_sharp_turns(&pts, 1.0 / px, 1.0 / py, SHARP_TURN_DEG);
         let anno = match s.dash {
-            Dash::Solid => chart.draw_series(LineSeries::new(pts.clone(), style)),
-            Dash::Dashed => chart.draw_series(DashedLineSeries::new(pts.clone(), 9, 6, style)),
+            Dash::Solid => chart.draw_series(
+                pieces
+                    .into_iter()
+                    .map(|piece| PathElement::new(piece, style)),
+            ),
+            Dash::Dashed => chart.draw_series(
+                pieces
+                    .into_iter()
+                    .flat_map(|piece| DashedLineSeries::new(piece, 9, 6, style)),
+            ),
         }
         .map_err(err)?;
         let dash = s.dash;
@@ -309,7 +326,9 @@ fn lobe_panel<DB: DrawingBackend>(
             .margin(12)
             .x_label_area_size(44)
             .y_label_area_size(58)
-            .build_cartesian_2d(-xr..xr, 0.0..ymax)
+            // A little below the surface: plotters' bitmap lines misbehave
+            // for points exactly on the plotting area's bottom edge.
+            .build_cartesian_2d(-xr..xr, -0.02 * ymax..ymax)
     };
     let dims = build(1.08 * r, 1.1 * r)
         .map_err(err)?
@@ -386,6 +405,8 @@ fn lobe_panel<DB: DrawingBackend>(
             )))
             .map_err(err)?;
     }
+    let (pw, _) = chart.plotting_area().dim_in_pixel();
+    let px = 1.5 * 2.0 * xr / pw.max(1) as f64;
     for s in &p.series {
         let pts: Vec<(f64, f64)> = s
             .points
@@ -393,9 +414,15 @@ fn lobe_panel<DB: DrawingBackend>(
             .copied()
             .filter(|(x, y)| x.is_finite() && y.is_finite())
             .collect();
+        let pts = thin_out(&pts, px, px);
         let style = color(s.color).stroke_width(2);
+        let pieces = split_at_sharp_turns(&pts, 1.0, 1.0, SHARP_TURN_DEG);
         chart
-            .draw_series(LineSeries::new(pts, style))
+            .draw_series(
+                pieces
+                    .into_iter()
+                    .map(|piece| PathElement::new(piece, style)),
+            )
             .map_err(err)?
             .label(s.label.as_str())
             .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 22, y)], style));

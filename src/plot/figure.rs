@@ -225,6 +225,55 @@ pub fn linear_label(v: f64) -> String {
     if r == 0.0 { "0".into() } else { format!("{r}") }
 }
 
+/// The points of a polyline without those closer than `(dx, dy)` (data
+/// units, per axis) to the last point kept; the first point is always kept.
+/// With `(dx, dy)` of 1.5 pixels, consecutive points never fall on the same
+/// pixel, where plotters' thick-line joins divide by a zero segment length
+/// (stray spikes in the PNG).
+pub fn thin_out(points: &[(f64, f64)], dx: f64, dy: f64) -> Vec<(f64, f64)> {
+    let mut out: Vec<(f64, f64)> = Vec::with_capacity(points.len());
+    for &p in points {
+        match out.last() {
+            Some(&q) if (p.0 - q.0).abs() < dx && (p.1 - q.1).abs() < dy => {}
+            _ => out.push(p),
+        }
+    }
+    out
+}
+
+/// A polyline cut into pieces at its sharp turns: where the direction turns
+/// by more than `max_turn_deg` (measured after scaling by `(sx, sy)`, e.g.
+/// pixels per data unit), one piece ends at the vertex and the next starts
+/// there. plotters joins thick bitmap lines with an uncapped inner miter,
+/// which for a near reversal (the petals of a DOP lobe) lands far away.
+pub fn split_at_sharp_turns(
+    points: &[(f64, f64)],
+    sx: f64,
+    sy: f64,
+    max_turn_deg: f64,
+) -> Vec<Vec<(f64, f64)>> {
+    let cos_max = max_turn_deg.to_radians().cos();
+    let mut pieces = Vec::new();
+    let mut cur: Vec<(f64, f64)> = Vec::new();
+    for (k, &p) in points.iter().enumerate() {
+        cur.push(p);
+        if k == 0 || k + 1 == points.len() {
+            continue;
+        }
+        let (a, b) = (points[k - 1], points[k + 1]);
+        let u = ((p.0 - a.0) * sx, (p.1 - a.1) * sy);
+        let v = ((b.0 - p.0) * sx, (b.1 - p.1) * sy);
+        let (lu, lv) = (u.0.hypot(u.1), v.0.hypot(v.1));
+        if lu > 0.0 && lv > 0.0 && (u.0 * v.0 + u.1 * v.1) / (lu * lv) < cos_max {
+            pieces.push(std::mem::replace(&mut cur, vec![p]));
+        }
+    }
+    if cur.len() > 1 || (pieces.is_empty() && !cur.is_empty()) {
+        pieces.push(cur);
+    }
+    pieces
+}
+
 /// Greedy word wrap into lines of at most `max_chars` characters (a longer
 /// word gets a line of its own).
 pub fn wrap_words(text: &str, max_chars: usize) -> Vec<String> {
@@ -279,6 +328,34 @@ mod tests {
         let r = |p: (f64, f64)| p.0.hypot(p.1);
         assert!((r(poly[0]) - 1.0 / 3.0).abs() < 1e-12);
         assert!(r(poly[5]).abs() < 1e-12);
+    }
+
+    #[test]
+    fn thinning_keeps_points_a_pixel_apart() {
+        let pts = [(0.0, 0.0), (0.1, 0.1), (2.0, 0.0), (2.0, 0.5), (2.0, 3.0)];
+        assert_eq!(
+            thin_out(&pts, 1.0, 1.0),
+            vec![(0.0, 0.0), (2.0, 0.0), (2.0, 3.0)]
+        );
+        assert!(thin_out(&[], 1.0, 1.0).is_empty());
+    }
+
+    #[test]
+    fn polylines_split_at_reversals_only() {
+        // Out and back: a 180° turn at (1, 0).
+        let pts = [(0.0, 0.0), (1.0, 0.0), (0.0, 0.01), (0.0, 1.0)];
+        let pieces = split_at_sharp_turns(&pts, 1.0, 1.0, 150.0);
+        assert_eq!(pieces.len(), 2);
+        assert_eq!(pieces[0], vec![(0.0, 0.0), (1.0, 0.0)]);
+        assert_eq!(pieces[1][0], (1.0, 0.0));
+        assert_eq!(pieces[1].len(), 3);
+        // A right angle stays one piece.
+        let l = [(0.0, 0.0), (1.0, 0.0), (1.0, 1.0)];
+        assert_eq!(split_at_sharp_turns(&l, 1.0, 1.0, 150.0), vec![l.to_vec()]);
+        // The angle is measured in scaled units.
+        let v = [(0.0, 0.0), (1.0, 100.0), (2.0, 0.0)];
+        assert_eq!(split_at_sharp_turns(&v, 1.0, 1.0, 150.0).len(), 2);
+        assert_eq!(split_at_sharp_turns(&v, 1.0, 0.001, 150.0).len(), 1);
     }
 
     #[test]

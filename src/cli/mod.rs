@@ -47,7 +47,8 @@ enum Command {
     /// Error against run time: solve at increasing streams, compare with a reference.
     Convergence(convergence::ConvergenceArgs),
     /// Plots of the seed's figures (SVG/PNG plus the plotted numbers as CSV).
-    Plot(plot::PlotArgs),
+    #[command(subcommand)]
+    Plot(plot::PlotCommand),
     /// Polarized preview renderer (spheres with BRDF tables on a floor).
     Render(render::RenderArgs),
     /// Run the HTTP service (docs/service.md).

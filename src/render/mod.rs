@@ -253,7 +253,10 @@ pub fn build(
 
 /// Per object seen through pixel centres: pixel count, mean and max degree
 /// of polarization and mean intensity of the visual Stokes vector
-/// (`output::visual_stokes`), and the DOP of the mean Stokes vector.
+/// (`output::visual_stokes`), the DOP of its mean Stokes vector, the
+/// number of pixels with DOP exactly 0 and, for several channels, per
+/// channel (ascending wavelength) the mean DOP and the DOP of the mean
+/// Stokes vector.
 pub fn object_statistics(scene: &Scene, img: &StokesImage) -> Value {
     let mut rows = Vec::new();
     let mut objects: Vec<(String, Option<Object>)> = (0..scene.spheres.len())
@@ -264,7 +267,10 @@ pub fn object_statistics(scene: &Scene, img: &StokesImage) -> Value {
     }
     objects.push(("background".into(), None));
     for (name, obj) in objects {
-        let (mut n, mut sum_dop, mut max_dop, mut sum) = (0usize, 0.0, 0.0f64, [0.0; 4]);
+        let (mut n, mut zero, mut sum_dop, mut max_dop) = (0usize, 0usize, 0.0, 0.0f64);
+        let mut sum = [0.0; 4];
+        let mut per_channel = [[0.0; 4]; MAX_CHANNELS];
+        let mut dop_per_channel = [0.0; MAX_CHANNELS];
         for y in 0..img.height {
             for x in 0..img.width {
                 if img.objects[y * img.width + x] != obj {
@@ -273,24 +279,48 @@ pub fn object_statistics(scene: &Scene, img: &StokesImage) -> Value {
                 let s = output::visual_stokes(img, x, y);
                 let p = degree_of_polarization(s);
                 n += 1;
+                zero += usize::from(p == 0.0);
                 sum_dop += p;
                 max_dop = max_dop.max(p);
                 for k in 0..4 {
                     sum[k] += s[k];
+                }
+                for (c, acc) in per_channel.iter_mut().enumerate().take(img.channels) {
+                    let v = img.stokes(x, y, c);
+                    dop_per_channel[c] += degree_of_polarization(v);
+                    for k in 0..4 {
+                        acc[k] += v[k];
+                    }
                 }
             }
         }
         if n == 0 {
             continue;
         }
-        rows.push(json!({
+        let mut row = json!({
             "object": name,
             "pixels": n,
             "mean_intensity": sum[0] / n as f64,
             "mean_dop": sum_dop / n as f64,
             "max_dop": max_dop,
             "dop_of_mean": degree_of_polarization(sum),
-        }));
+            "zero_dop_pixels": zero,
+        });
+        if img.channels > 1 {
+            row["mean_dop_per_channel"] = json!(
+                dop_per_channel[..img.channels]
+                    .iter()
+                    .map(|d| d / n as f64)
+                    .collect::<Vec<_>>()
+            );
+            row["dop_of_mean_per_channel"] = json!(
+                per_channel[..img.channels]
+                    .iter()
+                    .map(|s| degree_of_polarization(*s))
+                    .collect::<Vec<_>>()
+            );
+        }
+        rows.push(row);
     }
     Value::Array(rows)
 }

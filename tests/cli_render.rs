@@ -362,3 +362,42 @@ fn bad_scenes_are_clear_errors() {
     assert_eq!(code, 2);
     assert!(stderr.contains("broken.json"), "{stderr}");
 }
+
+/// Equirectangular environments from a PNG (sRGB-decoded) and from a float
+/// `.npy` (linear), seen directly: a constant map gives every pixel
+/// `scale · value`, unpolarized (float32 output: 1e-6 relative).
+#[test]
+fn equirectangular_environment_from_png_and_npy() {
+    use polbrdf::brdf::export::{NpyType, npy_bytes};
+    use polbrdf::render::output::{png_rgb8, srgb_decode};
+    let d = TempDir::new("render-env");
+    std::fs::write(
+        d.0.join("sky.png"),
+        png_rgb8(4, 2, &[128u8; 4 * 2 * 3]).unwrap(),
+    )
+    .unwrap();
+    std::fs::write(
+        d.0.join("sky.npy"),
+        npy_bytes(&[2, 4], &[0.75; 8], NpyType::F32).unwrap(),
+    )
+    .unwrap();
+    for (file, value) in [("sky.png", srgb_decode(128.0 / 255.0)), ("sky.npy", 0.75)] {
+        let scene = json!({
+            "camera": {"position": [0, 0, 1], "look_at": [1, 2, 1.5], "fov_deg": 60,
+                       "width": 8, "height": 6},
+            "environment": {"equirectangular": {"path": file, "scale": 2.0, "rotation_deg": 10}},
+            "samples_per_pixel": 1
+        });
+        let s = write_json(&d.0, "env.json", &scene);
+        let out = d.0.join("env").to_string_lossy().into_owned();
+        render(&s, &out, &[]);
+        let (_, px) = read_npy(&format!("{out}_stokes.npy"));
+        for p in px.chunks(4) {
+            assert!(
+                (p[0] as f64 - 2.0 * value).abs() < 1e-6 * value,
+                "{file}: {p:?}"
+            );
+            assert_eq!(&p[1..], &[0.0, 0.0, 0.0]);
+        }
+    }
+}

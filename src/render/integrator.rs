@@ -761,6 +761,32 @@ mod tests {
         assert_eq!(lit, 16 * 16);
     }
 
+    /// Equirectangular lookup: the top row is `+z`, the left edge azimuth
+    /// `−180°`, the centre column `+x`; `rotation` turns the map about `+z`.
+    #[test]
+    fn equirectangular_orientation() {
+        // 8 × 4 texels; value = column + 10 · row (one channel).
+        let (w, h) = (8, 4);
+        let texels = (0..w * h)
+            .map(|k| [(k % w) as f64 + 10.0 * (k / w) as f64, 0.0, 0.0])
+            .collect();
+        let mut m = EnvMap {
+            width: w,
+            height: h,
+            texels,
+            rotation_rad: 0.0,
+        };
+        // Straight up: row 0 (clamped); along +x at the horizon: between
+        // columns 3 and 4 and rows 1 and 2.
+        assert!((m.lookup([0.0, 0.0, 1.0])[0] - 3.5).abs() < 1e-12);
+        assert!((m.lookup([1.0, 0.0, 0.0])[0] - 18.5).abs() < 1e-12);
+        // Azimuth +90° (+y) is a quarter of the width to the right.
+        assert!((m.lookup([0.0, 1.0, 0.0])[0] - 20.5).abs() < 1e-12);
+        // Turning the map by +90° brings the +x texels to +y.
+        m.rotation_rad = std::f64::consts::FRAC_PI_2;
+        assert!((m.lookup([0.0, 1.0, 0.0])[0] - 18.5).abs() < 1e-12);
+    }
+
     /// Same seed, same image, whatever the number of threads; another seed
     /// gives another image (indirect light is sampled).
     #[test]

@@ -640,6 +640,48 @@ mod tests {
         assert!(degree_of_polarization(l) > 0.8);
     }
 
+    /// A mirror base under a zero-thickness layer (glass, n = 1.5) under a
+    /// uniform unpolarized sky: the camera sees the sky in the specular
+    /// delta only, `S' [1, 0, 0, 0]` with `S` the Fresnel Mueller matrix. At
+    /// Brewster's angle `θ_B = atan 1.5` the p-wave is not reflected: the
+    /// light is fully polarized perpendicular to the plane of incidence
+    /// (here horizontal, so vertical: `Q/I = −1`, `U = V = 0`) with
+    /// `I = R_s/2`, `R_s = ((cos θ − n cos θ_t)/(cos θ + n cos θ_t))²`.
+    /// Tolerance 1e-6: the table interpolates `S(μ_i)` on its 64-node grid.
+    #[test]
+    fn mirror_base_reflects_the_sky_polarized_at_brewster() {
+        let spec = crate::spec::parse(
+            r#"{"layers": [{"optical_thickness": 0, "scatterer": {"rayleigh": {"albedo": 1.0}}}],
+                "base": {"fresnel": {"material": {"n": 1.5, "k": 0.0}}}, "solver": {"streams": 4}}"#,
+        )
+        .unwrap();
+        let table =
+            crate::brdf::Table::from_spec(&spec, crate::brdf::grid::PolarGrid::default()).unwrap();
+        let mut scene = rayleigh_scene(1);
+        scene.lights.clear();
+        scene.environment = Environment::Uniform([1.0, 0.0, 0.0, 0.0]);
+        scene.spheres[0].brdf = Arc::new(TableBrdf::new(Arc::new(table), &[None]).unwrap());
+        let tb = 1.5f64.atan();
+        let mut rng = SplitMix64::new(1);
+        let s = scene.radiance(
+            [tb.sin(), -10.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [1.0, 0.0, 0.0],
+            0,
+            &mut rng,
+        )[0];
+        let (ct, st) = (tb.cos(), tb.sin());
+        let ctt = (1.0 - (st / 1.5).powi(2)).sqrt();
+        let rs = ((ct - 1.5 * ctt) / (ct + 1.5 * ctt)).powi(2);
+        assert!(
+            (s[0] - rs / 2.0).abs() < 1e-6,
+            "{s:?} vs R_s/2 = {}",
+            rs / 2.0
+        );
+        assert!((s[1] / s[0] + 1.0).abs() < 1e-6, "{s:?}");
+        assert!(s[2].abs() < 1e-12 && s[3].abs() < 1e-12, "{s:?}");
+    }
+
     /// Re-expressing the answer in an outgoing frame turned by `σ` is the
     /// rotation `L(σ)` of conventions §5: asking `radiance` for the turned
     /// frame gives `L(σ) s` (direct light only: no random numbers).

@@ -134,7 +134,7 @@ pub fn reflect(
             solver::reflection(&p, mu)
         }
         StreamPolicy::Tolerance(t) => {
-            solver::accuracy::reflection_to_tolerance(problem, mu, t, spec::MAX_STREAMS)
+            solver::accuracy::reflection_to_tolerance(problem, mu, t, spec::MAX_STREAMS, &|_| {})
                 .map(|e| e.reflection)
         }
     }

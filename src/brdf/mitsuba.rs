@@ -327,7 +327,7 @@ pub fn export_wavelengths(table: &Table, resample: bool) -> Result<(Vec<u16>, bo
         )));
     }
     let (lo, hi) = (known[0].ceil(), known[known.len() - 1].floor());
-    if !(hi - lo >= (WAVELENGTHS - 1) as f64) || lo < 1.0 || hi > f64::from(u16::MAX) {
+    if hi - lo < (WAVELENGTHS - 1) as f64 || lo < 1.0 || hi > f64::from(u16::MAX) {
         return Err(BrdfError::Query(format!(
             "--resample-wavelengths needs a wavelength range holding five whole nanometres within 1..65535 nm; the table has [{list}] nm"
         )));
@@ -839,7 +839,7 @@ mod tests {
     use super::*;
     use crate::brdf::PolarGrid;
     use crate::brdf::angles::incident_frame;
-    use crate::brdf::angles::{angles_of, outgoing_frame};
+    use crate::brdf::angles::outgoing_frame;
 
     fn some_mueller() -> Mueller {
         let mut m = [[0.0; 4]; 4];
@@ -939,10 +939,10 @@ mod tests {
         for s in [0.3, -1.2, 2.0] {
             let l = rotation(s);
             let llt = mul(&l, &crate::physics::stokes::transpose(&l));
-            for i in 0..4 {
-                for j in 0..4 {
+            for (i, row) in llt.iter().enumerate() {
+                for (j, x) in row.iter().enumerate() {
                     let id = if i == j { 1.0 } else { 0.0 };
-                    assert!((llt[i][j] - id).abs() < 1e-15);
+                    assert!((x - id).abs() < 1e-15);
                 }
             }
         }
@@ -967,7 +967,6 @@ mod tests {
                 assert!((a[i][j] - b[i][j]).abs() < 1e-14);
             }
         }
-        let _ = angles_of(wi);
     }
 
     /// Five whole-nm wavelengths pass; other counts and fractional

@@ -9,6 +9,7 @@
 //! * [`format`]: the binary table file (magic, version, SHA-256).
 //! * [`export`]: dense NumPy arrays, JSON point sets, CSV slices.
 //! * [`angles`]: graphics angles ↔ solver quantities (conventions §5).
+//! * [`mitsuba`]: Mitsuba 3 `measured_polarized` tensor files (docs/mitsuba.md).
 //!
 //! Layering: `cli` → `brdf` → `spec`, `solver` → `physics`. Everything but
 //! the file helpers in [`format`] and [`export`] is pure.
@@ -18,6 +19,7 @@ pub mod export;
 pub mod format;
 pub mod frames;
 pub mod grid;
+pub mod mitsuba;
 pub mod table;
 
 pub use frames::rotate_to_frames;

@@ -1,8 +1,10 @@
-//! `polbrdf export TABLE --format {npy,json,csv} -o FILE` and the table
-//! writer behind `polbrdf solve SPEC --table OUT` (docs/table-format.md).
+//! `polbrdf export TABLE --format {npy,json,csv,mitsuba} -o FILE` and the
+//! table writer behind `polbrdf solve SPEC --table OUT`
+//! (docs/table-format.md, docs/mitsuba.md).
 
 use crate::brdf::export::{self, DenseGrid, NpyType};
 use crate::brdf::format::{self, DataType};
+use crate::brdf::mitsuba::{self, BelowHorizon, MitsubaOptions};
 use crate::brdf::{Directions, PolarGrid, Table};
 use crate::spec;
 use clap::{Args, ValueEnum};
@@ -19,6 +21,17 @@ pub enum ExportFormat {
     Json,
     /// The plane of incidence at one incident angle (--theta-i-deg).
     Csv,
+    /// Mitsuba 3 `measured_polarized` tensor_file (five wavelengths; docs/mitsuba.md).
+    Mitsuba,
+}
+
+/// What the Mitsuba export stores at nodes below the horizon.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum BelowHorizonArg {
+    /// The BRDF at the node's directions moved up to the horizon (continuous extension).
+    Extend,
+    /// Zero.
+    Zero,
 }
 
 /// Element type of the .npy export.
@@ -52,6 +65,31 @@ pub struct ExportArgs {
     /// Only this wavelength (nm) for --format json (default: every wavelength of the table).
     #[arg(long)]
     pub wavelength_nm: Option<f64>,
+    /// --format mitsuba: nodes in phi_d over [-180, 180] deg (default 73: 5 deg steps).
+    #[arg(long)]
+    pub phi_d_nodes: Option<usize>,
+    /// --format mitsuba: nodes in theta_d over [0, 90] deg (default 46: 2 deg steps).
+    #[arg(long)]
+    pub theta_d_nodes: Option<usize>,
+    /// --format mitsuba: nodes in theta_h over [0, 90] deg (default 46: 2 deg steps).
+    #[arg(long)]
+    pub theta_h_nodes: Option<usize>,
+    /// --format mitsuba: interpolate the table linearly onto five evenly spaced whole-nm wavelengths in its range (the plugin reads exactly five).
+    #[arg(long)]
+    pub resample_wavelengths: bool,
+    /// --format mitsuba: what nodes below the horizon hold (default extend).
+    #[arg(long, value_enum)]
+    pub below_horizon: Option<BelowHorizonArg>,
+}
+
+impl ExportArgs {
+    fn has_mitsuba_options(&self) -> bool {
+        self.phi_d_nodes.is_some()
+            || self.theta_d_nodes.is_some()
+            || self.theta_h_nodes.is_some()
+            || self.resample_wavelengths
+            || self.below_horizon.is_some()
+    }
 }
 
 #[derive(Debug, Deserialize)]
@@ -78,6 +116,9 @@ fn read_points(path: &str) -> Result<Vec<Directions>, String> {
 
 /// Run `export`; the summary JSON is printed by the caller.
 pub fn run(a: &ExportArgs) -> Result<Value, String> {
+    if a.format != ExportFormat::Mitsuba && a.has_mitsuba_options() {
+        return Err("--phi-d-nodes, --theta-d-nodes, --theta-h-nodes, --resample-wavelengths and --below-horizon apply to --format mitsuba only".into());
+    }
     let table = super::source::load_table(&a.table)?;
     match a.format {
         ExportFormat::Npy => {
@@ -128,7 +169,56 @@ pub fn run(a: &ExportArgs) -> Result<Value, String> {
                 "slice": "plane of incidence, phi_i = 0; phi_o = 0 (theta_o_signed < 0) and 180 (> 0)",
             }))
         }
+        ExportFormat::Mitsuba => export_mitsuba(a, &table),
     }
+}
+
+/// Direction pairs of the resampling check printed by `--format mitsuba`.
+const CHECK_PAIRS: usize = 2000;
+
+fn export_mitsuba(a: &ExportArgs, table: &Table) -> Result<Value, String> {
+    if a.points.is_some() || a.theta_i_deg.is_some() || a.wavelength_nm.is_some() {
+        return Err("--format mitsuba exports the whole table: --points, --theta-i-deg and --wavelength-nm do not apply".into());
+    }
+    let d = MitsubaOptions::default();
+    let opts = MitsubaOptions {
+        phi_d: a.phi_d_nodes.unwrap_or(d.phi_d),
+        theta_d: a.theta_d_nodes.unwrap_or(d.theta_d),
+        theta_h: a.theta_h_nodes.unwrap_or(d.theta_h),
+        resample_wavelengths: a.resample_wavelengths,
+        below_horizon: match a.below_horizon {
+            None | Some(BelowHorizonArg::Extend) => BelowHorizon::Extend,
+            Some(BelowHorizonArg::Zero) => BelowHorizon::Zero,
+        },
+    };
+    let mirror = table.wavelengths.iter().any(|w| w.specular.is_some());
+    if mirror {
+        eprintln!(
+            "polbrdf: warning: the table's base is a mirror; its specular delta cannot be represented in a measured_polarized table and is left out (only the diffuse BRDF is exported; docs/mitsuba.md)"
+        );
+    }
+    let mt = mitsuba::build(table, &opts).map_err(|e| e.to_string())?;
+    let check = mitsuba::resampling_error(table, &mt, CHECK_PAIRS, 1).map_err(|e| e.to_string())?;
+    let bytes = mt.to_bytes();
+    write(&a.output, &bytes)?;
+    let meta: Value = serde_json::from_str(&mt.metadata).expect("metadata JSON");
+    Ok(json!({
+        "file": a.output, "format": "mitsuba", "bytes": bytes.len(),
+        "plugin": "measured_polarized (Mitsuba 3, *_spectral_polarized variants)",
+        "shape": mt.shape(),
+        "axes": ["phi_d", "theta_d", "theta_h", "wavelength", "row", "column"],
+        "wavelengths_nm": mt.wavelengths_nm,
+        "wavelength_policy": meta["wavelength_policy"],
+        "grid": meta["grid"],
+        "below_horizon": opts.below_horizon.name(),
+        "frames": meta["frames"],
+        "units": meta["units"],
+        "specular_delta": meta["specular_delta"],
+        "resampling_check": {
+            "what": "the plugin's interpolation of this file against the table, on f cos(theta_i), at seeded random direction pairs (uniform in solid angle) at the five wavelengths",
+            "result": check,
+        },
+    }))
 }
 
 /// `polbrdf solve SPEC --table OUT`: build the table on the default polar

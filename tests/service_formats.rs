@@ -280,3 +280,58 @@ async fn caps_act_before_any_work() {
         "{p}"
     );
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn mitsuba_export_is_served_and_cached() {
+    let dir = TempDir::new("mitsuba");
+    let s = Server::start(&dir.0.join("data"), &[], &[]);
+    let c = client();
+    // Five whole-nm wavelengths (the plugin reads exactly five).
+    let five = r#"{"layers":[{"optical_thickness":0.5,"scatterer":{"rayleigh":{"albedo":0.9}}}],
+                   "base":{"lambertian":{"albedo":0.3}},"wavelengths_nm":[450,500,550,600,650],
+                   "solver":{"streams":4}}"#;
+    let (code, v, _) = post(&c, &s, five).await;
+    assert_eq!(code, 202, "{v}");
+    let id = v["id"].as_str().unwrap().to_string();
+    wait_done(&c, &s, &id).await;
+    let url = s.url(&format!("/v1/brdfs/{id}/table?format=mitsuba"));
+    let t0 = Instant::now();
+    let r = c.get(&url).send().await.unwrap();
+    let first = t0.elapsed();
+    assert_eq!(r.status(), 200);
+    let etag = r.headers()["etag"].to_str().unwrap().to_string();
+    let b = r.bytes().await.unwrap();
+    assert_eq!(etag, format!("\"{}\"", sha256_hex(&b)));
+    let m = polbrdf::brdf::mitsuba::MitsubaTable::from_bytes(&b).expect("a tensor file");
+    assert_eq!(m.wavelengths_nm, vec![450, 500, 550, 600, 650]);
+    // The same file again comes from the export cache, with the same ETag.
+    let t1 = Instant::now();
+    let r = c.get(&url).send().await.unwrap();
+    assert_eq!(r.headers()["etag"].to_str().unwrap(), etag);
+    assert_eq!(r.bytes().await.unwrap(), b);
+    assert!(t1.elapsed() < first, "{:?} vs {first:?}", t1.elapsed());
+
+    // A wavelength-free table cannot become a Mitsuba file: 422 naming
+    // the parameter that would resample.
+    let (code, v, _) = post(&c, &s, TINY).await;
+    assert_eq!(code, 202, "{v}");
+    let tiny = v["id"].as_str().unwrap().to_string();
+    wait_done(&c, &s, &tiny).await;
+    let r = c
+        .get(s.url(&format!("/v1/brdfs/{tiny}/table?format=mitsuba")))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(r.status(), 422);
+    let p: Value = r.json().await.unwrap();
+    assert!(p["detail"].as_str().unwrap().contains("wavelength"), "{p}");
+    // Parameters of other formats are refused.
+    let r = c
+        .get(s.url(&format!(
+            "/v1/brdfs/{id}/table?format=mitsuba&theta_count=3"
+        )))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(r.status(), 422);
+}

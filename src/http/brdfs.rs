@@ -410,6 +410,10 @@ pub enum TableFormat {
     Npy,
     /// JSON: metadata, axes, shape and the same dense values (flat, C order).
     Json,
+    /// Mitsuba 3 `measured_polarized` tensor file (docs/mitsuba.md):
+    /// needs a table with exactly five whole-nm wavelengths unless
+    /// `resample_wavelengths=true`.
+    Mitsuba,
 }
 
 /// Element type of `format=npy`.
@@ -428,7 +432,7 @@ pub enum DenseType {
 #[serde(deny_unknown_fields)]
 #[into_params(parameter_in = Query)]
 pub struct TableQuery {
-    /// `binary` (default), `npy` or `json`.
+    /// `binary` (default), `npy`, `json` or `mitsuba`.
     pub format: Option<TableFormat>,
     /// Element type of `npy`: `f32` (default) or `f64`.
     pub dtype: Option<DenseType>,
@@ -437,6 +441,39 @@ pub struct TableQuery {
     pub theta_count: Option<usize>,
     /// Azimuths `φ_o − φ_i` of the dense grid, 0..360° inclusive (default 61).
     pub phi_count: Option<usize>,
+    /// `format=mitsuba`: resample to five evenly spaced whole-nm wavelengths
+    /// of the table's range (default false: the table must have five).
+    pub resample_wavelengths: Option<bool>,
+}
+
+/// Derived exports (npy, json, mitsuba) of recent requests, by result digest
+/// and query: a Mitsuba export takes seconds, so a render farm asking for the
+/// same file many times gets it computed once.
+#[derive(Debug, Default)]
+pub struct ExportCache {
+    entries: std::sync::Mutex<std::collections::VecDeque<(String, Export)>>,
+}
+
+/// One derived export: bytes, media type, SHA-256 (hex) of the bytes.
+type Export = (std::sync::Arc<Vec<u8>>, &'static str, String);
+
+/// Exports kept by [`ExportCache`].
+const CACHED_EXPORTS: usize = 4;
+
+impl ExportCache {
+    fn get(&self, key: &str) -> Option<Export> {
+        let q = self.entries.lock().expect("export cache");
+        q.iter().find(|(k, _)| k == key).map(|(_, e)| e.clone())
+    }
+
+    fn put(&self, key: String, export: Export) {
+        let mut q = self.entries.lock().expect("export cache");
+        q.retain(|(k, _)| *k != key);
+        q.push_back((key, export));
+        while q.len() > CACHED_EXPORTS {
+            q.pop_front();
+        }
+    }
 }
 
 /// A dense export of a parsed table (npy or JSON), checked against
@@ -452,6 +489,29 @@ fn dense_bytes(
         path: path.into(),
         message,
     };
+    if format == TableFormat::Mitsuba {
+        if q.dtype.is_some() || q.theta_count.is_some() || q.phi_count.is_some() {
+            return Err(invalid(
+                "format",
+                "dtype, theta_count and phi_count apply to format=npy|json; a Mitsuba file has its own grid (docs/mitsuba.md)".into(),
+            ));
+        }
+        let opts = crate::brdf::mitsuba::MitsubaOptions {
+            resample_wavelengths: q.resample_wavelengths.unwrap_or(false),
+            ..Default::default()
+        };
+        let bytes = crate::brdf::mitsuba::mitsuba_bytes(table, &opts).map_err(|e| match e {
+            crate::brdf::BrdfError::Query(m) => invalid("resample_wavelengths", m),
+            other => invalid("format", other.to_string()),
+        })?;
+        return Ok((bytes, "application/octet-stream"));
+    }
+    if q.resample_wavelengths.is_some() {
+        return Err(invalid(
+            "resample_wavelengths",
+            "resample_wavelengths applies to format=mitsuba only".into(),
+        ));
+    }
     let thetas = q.theta_count.unwrap_or(51);
     let phis = q.phi_count.unwrap_or(61);
     let grid =
@@ -524,7 +584,7 @@ fn dense_bytes(
         TableQuery,
     ),
     responses(
-        (status = 200, description = "The BRDF table (docs/table-format.md), Content-Type application/vnd.polbrdf.table; or with format=npy (application/x-npy) or format=json (application/json) a dense export",
+        (status = 200, description = "The BRDF table (docs/table-format.md), Content-Type application/vnd.polbrdf.table; or with format=npy (application/x-npy) or format=json (application/json) a dense export; or with format=mitsuba a Mitsuba 3 measured_polarized tensor file (docs/mitsuba.md)",
          headers(("ETag" = String, description = "\"<sha256 of the bytes>\""),
                  ("Cache-Control" = String, description = "public, max-age=31536000, immutable"))),
         (status = 304, description = "The client's copy is current",
@@ -546,26 +606,44 @@ pub async fn get_table(
     let Query(q) = query.map_err(|e| ApiError::InvalidQuery {
         path: "query".into(),
         message: format!(
-            "{}; allowed: format=binary|npy|json, dtype=f32|f64 (npy), theta_count, phi_count",
+            "{}; allowed: format=binary|npy|json|mitsuba, dtype=f32|f64 (npy), theta_count, phi_count (npy, json), resample_wavelengths=true|false (mitsuba)",
             e.body_text()
         ),
     })?;
     let format = q.format.unwrap_or_default();
     if format != TableFormat::Binary {
-        let (_, table) = super::eval::table_of(&state, &id).await?;
-        let max = state.0.config.limits.max_dense_values;
-        let (bytes, media) =
-            tokio::task::spawn_blocking(move || dense_bytes(&table, &q, format, max))
+        let (row, table) = super::eval::table_of(&state, &id).await?;
+        let key = format!(
+            "{}?{format:?}&{:?}&{:?}&{:?}&{:?}",
+            row.digest.as_deref().unwrap_or(""),
+            q.dtype,
+            q.theta_count,
+            q.phi_count,
+            q.resample_wavelengths
+        );
+        let (bytes, media, digest) = match state.0.exports.get(&key) {
+            Some(hit) => hit,
+            None => {
+                let max = state.0.config.limits.max_dense_values;
+                let export = tokio::task::spawn_blocking(move || {
+                    dense_bytes(&table, &q, format, max).map(|(bytes, media)| {
+                        let digest: String = sha2::Sha256::digest(&bytes)
+                            .iter()
+                            .map(|b| format!("{b:02x}"))
+                            .collect();
+                        (std::sync::Arc::new(bytes), media, digest)
+                    })
+                })
                 .await
                 .map_err(|e| ApiError::Internal(e.to_string()))??;
-        let digest: String = sha2::Sha256::digest(&bytes)
-            .iter()
-            .map(|b| format!("{b:02x}"))
-            .collect();
+                state.0.exports.put(key, export.clone());
+                export
+            }
+        };
         let mut res = if none_match(&headers, &digest) {
             StatusCode::NOT_MODIFIED.into_response()
         } else {
-            let mut r = bytes.into_response();
+            let mut r = axum::body::Body::from(bytes.as_ref().clone()).into_response();
             r.headers_mut()
                 .insert(header::CONTENT_TYPE, HeaderValue::from_static(media));
             r
@@ -575,10 +653,14 @@ pub async fn get_table(
         h.insert(header::CACHE_CONTROL, HeaderValue::from_static(IMMUTABLE));
         return Ok(res);
     }
-    if q.dtype.is_some() || q.theta_count.is_some() || q.phi_count.is_some() {
+    if q.dtype.is_some()
+        || q.theta_count.is_some()
+        || q.phi_count.is_some()
+        || q.resample_wavelengths.is_some()
+    {
         return Err(ApiError::InvalidQuery {
             path: "format".into(),
-            message: "dtype, theta_count and phi_count apply to format=npy|json only".into(),
+            message: "dtype, theta_count, phi_count (npy, json) and resample_wavelengths (mitsuba) do not apply to the binary table".into(),
         });
     }
     let row = row_of(&state, &id).await?;

@@ -43,6 +43,8 @@ pub struct App {
     pub jobs: Arc<Jobs>,
     /// Parsed tables of recent evaluations.
     pub tables: eval::TableCache,
+    /// Recent derived exports (`GET …/table?format=…`).
+    pub exports: brdfs::ExportCache,
 }
 
 /// Handler state: a cheap clone of the shared [`App`].
@@ -224,6 +226,7 @@ pub async fn serve(
         config,
         jobs: jobs.clone(),
         tables: eval::TableCache::default(),
+        exports: brdfs::ExportCache::default(),
     }));
     let stopping = jobs.clone();
     axum::serve(listener, router(state))

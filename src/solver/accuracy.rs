@@ -108,6 +108,14 @@ fn with_streams(problem: &Problem, n: usize) -> Problem {
     p
 }
 
+/// A coarse level of an estimate: `n` streams, unresolved series allowed
+/// (its error only makes the estimate larger).
+fn coarse(problem: &Problem, n: usize) -> Problem {
+    let mut p = with_streams(problem, n);
+    p.settings.allow_unresolved = true;
+    p
+}
+
 /// Solve at `problem.settings.streams` and estimate the error from two
 /// coarser solves (`N/2`, `N/4`, at least 1 stream).
 pub fn reflection_with_estimate(
@@ -116,9 +124,9 @@ pub fn reflection_with_estimate(
 ) -> Result<Estimated, SolverError> {
     let n = problem.settings.streams;
     let levels = [(n / 4).max(1), (n / 2).max(1), n];
-    let quarter = probe(&reflection(&with_streams(problem, levels[0]), mu_user)?);
-    let half = probe(&reflection(&with_streams(problem, levels[1]), mu_user)?);
     let fine = reflection(problem, mu_user)?;
+    let quarter = probe(&reflection(&coarse(problem, levels[0]), mu_user)?);
+    let half = probe(&reflection(&coarse(problem, levels[1]), mu_user)?);
     let (max_err_f11, contraction) = tail_estimate(&quarter, &half, &probe(&fine));
     Ok(Estimated {
         reflection: fine,
@@ -164,20 +172,30 @@ pub fn reflection_to_tolerance(
             let within = done as f64 / bound.max(1) as f64;
             on_progress((levels_done + within) / (levels_done + 2.0));
         };
-        let r = reflection_observed(&with_streams(problem, n), mu_user, &report)?;
+        let r = reflection_observed(&coarse(problem, n), mu_user, &report)?;
         probes.push((n, probe(&r)));
         if probes.len() >= 3 {
             let k = probes.len();
             let (est, contraction) =
                 tail_estimate(&probes[k - 3].1, &probes[k - 2].1, &probes[k - 1].1);
-            if est > tolerance && 2 * n > max_streams {
-                return Err(SolverError::ToleranceNotMet {
-                    tolerance,
-                    estimate: est,
-                    streams: n,
-                });
+            // The answer itself must resolve every series (the coarse
+            // levels of the estimate need not).
+            let resolved = problem
+                .layers
+                .iter()
+                .enumerate()
+                .try_for_each(|(i, l)| super::check_resolved(i, l, n));
+            if 2 * n > max_streams {
+                resolved.clone()?;
+                if est > tolerance {
+                    return Err(SolverError::ToleranceNotMet {
+                        tolerance,
+                        estimate: est,
+                        streams: n,
+                    });
+                }
             }
-            if est <= tolerance {
+            if est <= tolerance && resolved.is_ok() {
                 return Ok(Estimated {
                     reflection: r,
                     estimate: ErrorEstimate {

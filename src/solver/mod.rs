@@ -96,6 +96,10 @@ pub struct Settings {
     /// single-scattering correction at user angles ([`truncation`]); a no-op
     /// when every series fits the quadrature.
     pub delta_m: bool,
+    /// Solve even when a series is [`SolverError::Unresolved`]: only for the
+    /// coarse solves of an error estimate (`accuracy`), whose job is to be
+    /// worse than the answer.
+    pub allow_unresolved: bool,
 }
 
 impl Default for Settings {
@@ -107,6 +111,7 @@ impl Default for Settings {
             max_order: None,
             fourier_tolerance: 1e-9,
             delta_m: true,
+            allow_unresolved: false,
         }
     }
 }
@@ -131,6 +136,26 @@ pub enum SolverError {
     /// A non-finite number appeared (never returned silently).
     #[error("numerical failure: {0}")]
     NonFinite(String),
+    /// A layer's phase matrix has terms the streams cannot integrate and no
+    /// forward peak delta-M could remove (e.g. a backward-peaked
+    /// Henyey–Greenstein function): solving would create or destroy energy
+    /// and can give negative radiances.
+    #[error(
+        "layers[{layer}]: the phase function is not forward-peaked and has terms up to l = {terms} (|β_l|/(2l+1) up to {size:.1e} beyond l = 2N − 1 = {}), which {streams} streams cannot integrate; use at least {needed} streams (or solver.tolerance)",
+        2 * streams - 1
+    )]
+    Unresolved {
+        /// Index of the layer.
+        layer: usize,
+        /// Length of its series minus one.
+        terms: usize,
+        /// Largest `|β_l|/(2l+1)` beyond the quadrature's reach.
+        size: f64,
+        /// Streams of the problem.
+        streams: usize,
+        /// Fewest streams that resolve the series to [`UNRESOLVED_TOLERANCE`].
+        needed: usize,
+    },
     /// `solver.tolerance` was not reached within the allowed streams.
     #[error(
         "solver.tolerance {tolerance:e} was not reached: the estimated error at {streams} streams (the most allowed) is {estimate:.2e}; raise the stream cap or loosen the tolerance"
@@ -478,6 +503,46 @@ fn order_count(problem: &Problem) -> usize {
     m.max(1)
 }
 
+/// Largest normalised coefficient `|β_l|/(2l+1)` (`l ≥ 2N`) a phase
+/// function without a forward peak may have beyond the quadrature's reach.
+/// The aliased terms act like an error of that size in the phase function's
+/// normalisation on the quadrature; measured: a conservative semi-infinite
+/// HG layer (g = −0.6, 8 streams, largest term 2.8e-4) reflects 1 + 1.5e-3
+/// of the incident flux, and g = −0.9 at 9 streams (0.15) gave negative
+/// radiances (tests/properties.rs).
+pub const UNRESOLVED_TOLERANCE: f64 = 1e-4;
+
+/// [`SolverError::Unresolved`] for a layer whose series is longer than `2N`
+/// terms, not forward-peaked (`β_1 ≤ 0`, so delta-M does not truncate it)
+/// and not negligible beyond `2N − 1`.
+pub fn check_resolved(i: usize, layer: &Layer, streams: usize) -> Result<(), SolverError> {
+    let beta = &layer.coef.beta;
+    let keep = 2 * streams;
+    let forward = beta.get(1).is_some_and(|&b| b > 0.0);
+    if beta.len() <= keep || forward || layer.albedo == 0.0 {
+        return Ok(());
+    }
+    if matches!(layer.thickness, Thickness::Finite(t) if t <= 0.0) {
+        return Ok(());
+    }
+    let chi = |l: usize| beta[l].abs() / (2 * l + 1) as f64;
+    let size = (keep..beta.len()).map(chi).fold(0.0, f64::max);
+    if size <= UNRESOLVED_TOLERANCE {
+        return Ok(());
+    }
+    let last_big = (0..beta.len())
+        .rev()
+        .find(|&l| chi(l) > UNRESOLVED_TOLERANCE)
+        .unwrap_or(0);
+    Err(SolverError::Unresolved {
+        layer: i,
+        terms: beta.len() - 1,
+        size,
+        streams,
+        needed: (last_big + 1).div_ceil(2),
+    })
+}
+
 fn validate(problem: &Problem, mu_user: &[f64]) -> Result<(), SolverError> {
     let s = &problem.settings;
     if s.streams == 0 {
@@ -507,6 +572,9 @@ fn validate(problem: &Problem, mu_user: &[f64]) -> Result<(), SolverError> {
                 )));
             }
             _ => {}
+        }
+        if !s.allow_unresolved {
+            check_resolved(i, l, s.streams)?;
         }
     }
     for &mu in mu_user {
@@ -1007,6 +1075,32 @@ mod law_tests {
 
     fn gs() -> GreekCoefficients {
         phase::tests_support::garcia_siewert()
+    }
+
+    /// A backward-peaked HG series the streams cannot integrate is refused
+    /// with the streams it needs; with those streams it solves and conserves
+    /// energy on the quadrature; forward peaks are delta-M's business.
+    #[test]
+    fn unresolved_backward_peaks_are_refused_with_the_streams_they_need() {
+        let hg = |g: f64| GreekCoefficients::henyey_greenstein(g, 300);
+        let mu = [0.3, 1.0];
+        let p = problem(Thickness::Finite(1.0), 1.0, hg(-0.9), Base::Black, 9);
+        let Err(SolverError::Unresolved {
+            needed, streams, ..
+        }) = reflection(&p, &mu)
+        else {
+            panic!("g = -0.9 at 9 streams must be refused");
+        };
+        assert_eq!(streams, 9);
+        // Smallest N with 0.9^l <= 1e-4 for every l >= 2N: l >= 88 -> N = 44.
+        assert_eq!(needed, 44);
+        let ok = problem(Thickness::Finite(1.0), 1.0, hg(-0.9), Base::Black, needed);
+        assert!(reflection(&ok, &mu).is_ok());
+        let fwd = problem(Thickness::Finite(1.0), 1.0, hg(0.9), Base::Black, 9);
+        assert!(reflection(&fwd, &mu).is_ok());
+        // A zero-albedo or empty layer has no phase function to resolve.
+        let dark = problem(Thickness::Finite(1.0), 0.0, hg(-0.9), Base::Black, 4);
+        assert!(reflection(&dark, &mu).is_ok());
     }
 
     fn problem(

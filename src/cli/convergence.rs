@@ -5,6 +5,8 @@
 //! grid, and reports the error the solver itself estimated next to the true
 //! one.
 
+use crate::plot::draw;
+use crate::plot::figure::{Axis, Dash, Figure, Legend, LinePanel, Panel, Series};
 use crate::solver::{self, Problem, ReflectionFourier};
 use crate::spec;
 use clap::Args;
@@ -24,7 +26,7 @@ pub struct ConvergenceArgs {
     /// Print {"rows": [...]} as JSON.
     #[arg(long)]
     json: bool,
-    /// Write an error-versus-time chart (log-log SVG).
+    /// Write an error-versus-time chart (log-log; .svg or .png).
     #[arg(long)]
     plot: Option<String>,
 }
@@ -181,7 +183,10 @@ pub fn run(a: &ConvergenceArgs) -> Result<Value, String> {
         m *= 2;
     }
     if let Some(path) = &a.plot {
-        std::fs::write(path, svg(&rows)).map_err(|e| format!("{path}: {e}"))?;
+        let path = std::path::Path::new(path);
+        draw::format_of(path)?;
+        draw::register_font(None)?;
+        draw::write(&chart(&rows, &a.spec), path)?;
     }
     let _ = a.json; // the output is always JSON
     Ok(
@@ -192,133 +197,102 @@ pub fn run(a: &ConvergenceArgs) -> Result<Value, String> {
     )
 }
 
-/// A minimal log-log chart of error against wall time: the true max error
-/// of each family of settings and the solver's estimate (streams family),
-/// one point per setting.
-fn svg(rows: &[Value]) -> String {
-    let pts = |family: &str, key: &str| -> Vec<(f64, f64, u64)> {
+/// Error against wall time, log-log: the true max error of each family of
+/// settings and the solver's estimate (streams family), one point per
+/// setting; SVG or PNG by the extension (the plot module's renderer).
+fn chart(rows: &[Value], spec: &str) -> Figure {
+    let pts = |family: &str, key: &str| -> Vec<(f64, f64)> {
         rows.iter()
             .filter(|r| r["family"] == family && r[key].is_number())
             .map(|r| {
                 (
                     r["wall_time_ms"].as_f64().unwrap_or(1.0).max(1e-3),
                     r[key].as_f64().unwrap_or(1e-16).max(1e-16),
-                    if family == "fourier orders" {
-                        r["fourier_orders"].as_u64().unwrap_or(0)
-                    } else {
-                        r["streams"].as_u64().unwrap_or(0)
-                    },
                 )
             })
             .collect()
     };
-    let series = [
+    let series: Vec<Series> = [
+        ("streams: true error", "streams", "max_err_f11", Dash::Solid),
         (
-            pts("streams", "max_err_f11"),
-            "black",
-            "streams: true error",
-            "N=",
+            "streams: solver's estimate",
+            "streams",
+            "estimated_err",
+            Dash::Dashed,
         ),
         (
-            pts("streams", "estimated_err"),
-            "red",
-            "streams: estimate",
-            "",
-        ),
-        (
-            pts("streams, no delta-M", "max_err_f11"),
-            "blue",
             "streams, no delta-M",
-            "",
+            "streams, no delta-M",
+            "max_err_f11",
+            Dash::Solid,
         ),
         (
-            pts("fourier orders", "max_err_f11"),
-            "green",
-            "Fourier orders",
-            "M=",
+            "Fourier orders (largest streams)",
+            "fourier orders",
+            "max_err_f11",
+            Dash::Solid,
         ),
-    ];
-    let all: Vec<&(f64, f64, u64)> = series.iter().flat_map(|s| s.0.iter()).collect();
-    if all.is_empty() {
-        return "<svg xmlns='http://www.w3.org/2000/svg'/>\n".into();
+    ]
+    .iter()
+    .enumerate()
+    .map(|(k, (label, family, key, dash))| Series {
+        label: label.to_string(),
+        points: pts(family, key),
+        color: k,
+        dash: *dash,
+        markers: true,
+    })
+    .filter(|s| !s.points.is_empty())
+    .collect();
+    let all: Vec<(f64, f64)> = series.iter().flat_map(|s| s.points.clone()).collect();
+    let decade = |v: f64, up: bool| {
+        let l = v.log10();
+        10f64.powf(if up { l.ceil() } else { l.floor() })
+    };
+    let (x0, x1) = all
+        .iter()
+        .fold((f64::MAX, f64::MIN), |(a, b), p| (a.min(p.0), b.max(p.0)));
+    let (y0, y1) = all
+        .iter()
+        .fold((f64::MAX, f64::MIN), |(a, b), p| (a.min(p.1), b.max(p.1)));
+    let (x0, x1) = if all.is_empty() {
+        (1.0, 10.0)
+    } else {
+        (
+            decade(x0, false),
+            decade(x1, true).max(10.0 * decade(x0, false)),
+        )
+    };
+    let (y0, y1) = if all.is_empty() {
+        (1e-3, 1.0)
+    } else {
+        (
+            decade(y0, false),
+            decade(y1, true).max(10.0 * decade(y0, false)),
+        )
+    };
+    Figure {
+        size: (800, 520),
+        rows: 1,
+        cols: 1,
+        panels: vec![Panel::Line(LinePanel {
+            title: format!("error against run time: {spec}"),
+            x: Axis {
+                label: "wall time (ms)".into(),
+                lo: x0,
+                hi: x1,
+                log: true,
+            },
+            y: Axis {
+                label: "max |error of f11| / max f11".into(),
+                lo: y0,
+                hi: y1,
+                log: true,
+            },
+            series,
+            legend: Legend::UpperRight,
+        })],
+        footnote: "polbrdf convergence: each point one solve; reference at --reference-streams"
+            .into(),
     }
-    let (tx0, tx1) = all.iter().fold((f64::MAX, f64::MIN), |(a, b), p| {
-        (a.min(p.0.log10()), b.max(p.0.log10()))
-    });
-    let (ty0, ty1) = all.iter().fold((f64::MAX, f64::MIN), |(a, b), p| {
-        (a.min(p.1.log10()), b.max(p.1.log10()))
-    });
-    let (x0, x1) = (tx0.floor(), tx1.ceil().max(tx0.floor() + 1.0));
-    let (y0, y1) = (ty0.floor(), ty1.ceil().max(ty0.floor() + 1.0));
-    let (w, h, m) = (640.0, 420.0, 60.0);
-    let px = |t: f64| m + (t.log10() - x0) / (x1 - x0) * (w - 2.0 * m);
-    let py = |e: f64| h - m - (e.log10() - y0) / (y1 - y0) * (h - 2.0 * m);
-    let mut s = format!(
-        "<svg xmlns='http://www.w3.org/2000/svg' width='{w}' height='{h}' font-family='sans-serif' font-size='12'>\n\
-         <rect width='100%' height='100%' fill='white'/>\n\
-         <line x1='{m}' y1='{}' x2='{}' y2='{}' stroke='black'/>\n<line x1='{m}' y1='{m}' x2='{m}' y2='{}' stroke='black'/>\n",
-        h - m,
-        w - m,
-        h - m,
-        h - m
-    );
-    for k in x0 as i32..=x1 as i32 {
-        let x = m + (k as f64 - x0) / (x1 - x0) * (w - 2.0 * m);
-        s += &format!(
-            "<text x='{x}' y='{}' text-anchor='middle'>1e{k}</text>\n",
-            h - m + 18.0
-        );
-    }
-    for k in y0 as i32..=y1 as i32 {
-        let y = h - m - (k as f64 - y0) / (y1 - y0) * (h - 2.0 * m);
-        s += &format!(
-            "<text x='{}' y='{y}' text-anchor='end'>1e{k}</text>\n",
-            m - 6.0
-        );
-    }
-    s += &format!(
-        "<text x='{}' y='{}' text-anchor='middle'>wall time (ms)</text>\n",
-        w / 2.0,
-        h - 15.0
-    );
-    s += &format!(
-        "<text x='15' y='{}' transform='rotate(-90 15 {})' text-anchor='middle'>max |error f11| / max f11</text>\n",
-        h / 2.0,
-        h / 2.0
-    );
-    for (k, (series, colour, label, tag)) in series.iter().enumerate() {
-        if series.is_empty() {
-            continue;
-        }
-        let dy = 16.0 * k as f64;
-        let path: Vec<String> = series
-            .iter()
-            .map(|p| format!("{:.1},{:.1}", px(p.0), py(p.1)))
-            .collect();
-        s += &format!(
-            "<polyline fill='none' stroke='{colour}' points='{}'/>\n",
-            path.join(" ")
-        );
-        for p in series.iter() {
-            s += &format!(
-                "<circle cx='{:.1}' cy='{:.1}' r='3' fill='{colour}'/>\n",
-                px(p.0),
-                py(p.1)
-            );
-            if !tag.is_empty() {
-                s += &format!(
-                    "<text x='{:.1}' y='{:.1}' fill='{colour}'>{tag}{}</text>\n",
-                    px(p.0) + 5.0,
-                    py(p.1) - 5.0,
-                    p.2
-                );
-            }
-        }
-        s += &format!(
-            "<text x='{}' y='{}' fill='{colour}'>{label}</text>\n",
-            w - m - 150.0,
-            m + dy
-        );
-    }
-    s + "</svg>\n"
 }

@@ -215,14 +215,17 @@ fn line_panel<DB: DrawingBackend>(
     p: &LinePanel,
 ) -> Result<(), String> {
     let log = p.x.log;
+    let ylog = p.y.log;
     let tx = move |x: f64| if log { x.log10() } else { x };
+    let ty = move |y: f64| if ylog { y.log10() } else { y };
     let (x0, x1) = (tx(p.x.lo), tx(p.x.hi));
+    let (y0, y1) = (ty(p.y.lo), ty(p.y.hi));
     let mut chart = ChartBuilder::on(area)
         .caption(&p.title, (FONT, 17))
         .margin(12)
         .x_label_area_size(46)
         .y_label_area_size(64)
-        .build_cartesian_2d(x0..x1, p.y.lo..p.y.hi)
+        .build_cartesian_2d(x0..x1, y0..y1)
         .map_err(err)?;
     let x_fmt = move |v: &f64| {
         if log {
@@ -231,9 +234,20 @@ fn line_panel<DB: DrawingBackend>(
             linear_label(*v)
         }
     };
-    let y_fmt = |v: &f64| linear_label(*v);
+    let y_fmt = move |v: &f64| {
+        if ylog {
+            decade_label(*v)
+        } else {
+            linear_label(*v)
+        }
+    };
     let x_labels = if log {
         ((x1 - x0).round() as usize + 1).max(2)
+    } else {
+        11
+    };
+    let y_labels = if ylog {
+        ((y1 - y0).round() as usize + 1).max(2)
     } else {
         11
     };
@@ -242,7 +256,7 @@ fn line_panel<DB: DrawingBackend>(
         .x_desc(p.x.label.as_str())
         .y_desc(p.y.label.as_str())
         .x_labels(x_labels)
-        .y_labels(11)
+        .y_labels(y_labels)
         .x_label_formatter(&x_fmt)
         .y_label_formatter(&y_fmt)
         .label_style((FONT, 13))
@@ -253,13 +267,15 @@ fn line_panel<DB: DrawingBackend>(
         .map_err(err)?;
     let (pw, ph) = chart.plotting_area().dim_in_pixel();
     let px = 1.5 * (x1 - x0) / pw.max(1) as f64;
-    let py = 1.5 * (p.y.hi - p.y.lo) / ph.max(1) as f64;
+    let py = 1.5 * (y1 - y0) / ph.max(1) as f64;
     for s in &p.series {
         let pts: Vec<(f64, f64)> = s
             .points
             .iter()
-            .filter(|(x, y)| x.is_finite() && y.is_finite() && (!log || *x > 0.0))
-            .map(|&(x, y)| (tx(x), y))
+            .filter(|(x, y)| {
+                x.is_finite() && y.is_finite() && (!log || *x > 0.0) && (!ylog || *y > 0.0)
+            })
+            .map(|&(x, y)| (tx(x), ty(y)))
             .collect();
         let pts = thin_out(&pts, px, py);
         let style = color(s.color).stroke_width(2);

@@ -3,20 +3,11 @@
 //! the reference's streams (an independent computation of the "true"
 //! error), and against laws any convergence table must obey.
 
-use serde_json::Value;
-use std::process::Command;
+mod common;
 
-fn run(args: &[&str]) -> (i32, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_polbrdf"))
-        .args(args)
-        .output()
-        .expect("run polbrdf");
-    (
-        out.status.code().unwrap_or(-1),
-        String::from_utf8_lossy(&out.stdout).into_owned(),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    )
-}
+use common::run;
+
+use serde_json::Value;
 
 fn scratch(name: &str) -> std::path::PathBuf {
     let d = std::env::temp_dir().join(format!("polbrdf-conv-{name}-{}", std::process::id()));

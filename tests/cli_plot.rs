@@ -4,36 +4,16 @@
 //! quantity (`polbrdf solve --points` for the curves, `polbrdf eval` for the
 //! lobe); bad input is a one-line error with a non-zero exit code.
 
-use serde_json::{Value, json};
+mod common;
+
+use common::{ok, run, scratch_dir};
+
+use serde_json::json;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
-use std::process::Command;
-use std::sync::atomic::{AtomicUsize, Ordering};
 
 fn dir() -> PathBuf {
-    static COUNTER: AtomicUsize = AtomicUsize::new(0);
-    let k = COUNTER.fetch_add(1, Ordering::SeqCst);
-    let d = std::env::temp_dir().join(format!("polbrdf-cli-plot-{}-{k}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
-fn run(args: &[&str]) -> (i32, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_polbrdf"))
-        .args(args)
-        .output()
-        .expect("run polbrdf");
-    (
-        out.status.code().unwrap_or(-1),
-        String::from_utf8_lossy(&out.stdout).into_owned(),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    )
-}
-
-fn ok(args: &[&str]) -> Value {
-    let (code, out, err) = run(args);
-    assert_eq!(code, 0, "polbrdf {args:?}: {err}");
-    serde_json::from_str(&out).expect("JSON on stdout")
+    scratch_dir("cli-plot")
 }
 
 fn fails(args: &[&str]) -> String {

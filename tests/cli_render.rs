@@ -4,30 +4,15 @@
 //! four angles recover the Stokes vector), determinism, tables from a
 //! running service, and clear errors for bad scenes.
 
+mod common;
+
+use common::{ok, run};
+
 mod service_support;
 
 use serde_json::{Value, json};
 use service_support::{Server, TempDir, client, post, wait_done};
 use std::path::Path;
-use std::process::Command;
-
-fn run(args: &[&str]) -> (i32, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_polbrdf"))
-        .args(args)
-        .output()
-        .expect("run polbrdf");
-    (
-        out.status.code().unwrap_or(-1),
-        String::from_utf8_lossy(&out.stdout).into_owned(),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    )
-}
-
-fn ok(args: &[&str]) -> Value {
-    let (code, out, err) = run(args);
-    assert_eq!(code, 0, "polbrdf {args:?}: {err}");
-    serde_json::from_str(&out).expect("JSON on stdout")
-}
 
 fn write_json(d: &Path, name: &str, v: &Value) -> String {
     let p = d.join(name);

@@ -2,32 +2,16 @@
 
 mod common;
 
+use common::run;
+
 use serde_json::{Value, json};
 use std::path::PathBuf;
-use std::process::Command;
-use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// A fresh file per call (tests run in parallel).
 fn tmp(name: &str, v: &Value) -> PathBuf {
-    static COUNTER: AtomicUsize = AtomicUsize::new(0);
-    let k = COUNTER.fetch_add(1, Ordering::SeqCst);
-    let dir = std::env::temp_dir().join(format!("polbrdf-cli-solve-{}-{k}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let p = dir.join(name);
+    let p = common::scratch_dir("cli-solve").join(name);
     std::fs::write(&p, serde_json::to_string(v).unwrap()).unwrap();
     p
-}
-
-fn run(args: &[&str]) -> (i32, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_polbrdf"))
-        .args(args)
-        .output()
-        .expect("run polbrdf");
-    (
-        out.status.code().unwrap_or(-1),
-        String::from_utf8_lossy(&out.stdout).into_owned(),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    )
 }
 
 fn solve(spec: &Value, points: Option<&Value>, field: Option<&Value>) -> Value {

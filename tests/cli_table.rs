@@ -2,11 +2,13 @@
 //! `export` (docs/table-format.md). The reference is always
 //! `polbrdf solve --points` on the same directions (a direct solve).
 
+mod common;
+
+use common::{ok, run, scratch_dir};
+
 use polbrdf::brdf::grid::PolarGrid;
 use serde_json::{Value, json};
 use std::path::PathBuf;
-use std::process::Command;
-use std::sync::atomic::{AtomicUsize, Ordering};
 
 type M4 = [[f64; 4]; 4];
 
@@ -17,29 +19,7 @@ type M4 = [[f64; 4]; 4];
 const INTERPOLATION_BOUND: f64 = 1e-5;
 
 fn dir() -> PathBuf {
-    static COUNTER: AtomicUsize = AtomicUsize::new(0);
-    let k = COUNTER.fetch_add(1, Ordering::SeqCst);
-    let d = std::env::temp_dir().join(format!("polbrdf-cli-table-{}-{k}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
-fn run(args: &[&str]) -> (i32, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_polbrdf"))
-        .args(args)
-        .output()
-        .expect("run polbrdf");
-    (
-        out.status.code().unwrap_or(-1),
-        String::from_utf8_lossy(&out.stdout).into_owned(),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    )
-}
-
-fn ok(args: &[&str]) -> Value {
-    let (code, out, err) = run(args);
-    assert_eq!(code, 0, "polbrdf {args:?}: {err}");
-    serde_json::from_str(&out).expect("JSON on stdout")
+    scratch_dir("cli-table")
 }
 
 fn write_json(d: &std::path::Path, name: &str, v: &Value) -> String {

@@ -50,6 +50,10 @@
 //! export 8 s on 2 cores, Mitsuba under 1 s); creating it adds the
 //! download and install of `mitsuba` (see the report in docs/mitsuba.md).
 
+mod common;
+
+use common::{ok, run, scratch_dir};
+
 use polbrdf::brdf::angles::{Vec3, angles_of, cross, dot, normalize};
 use polbrdf::brdf::mitsuba::{MitsubaTable, flip_v, rebase, to_mitsuba};
 use polbrdf::physics::{RefractiveIndex, fresnel};
@@ -57,7 +61,6 @@ use serde_json::{Value, json};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::sync::OnceLock;
-use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
 
 type M4 = [[f64; 4]; 4];
@@ -84,29 +87,7 @@ fn repo() -> PathBuf {
 }
 
 fn dir() -> PathBuf {
-    static COUNTER: AtomicUsize = AtomicUsize::new(0);
-    let k = COUNTER.fetch_add(1, Ordering::SeqCst);
-    let d = std::env::temp_dir().join(format!("polbrdf-mitsuba-{}-{k}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
-fn run(args: &[&str]) -> (i32, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_polbrdf"))
-        .args(args)
-        .output()
-        .expect("run polbrdf");
-    (
-        out.status.code().unwrap_or(-1),
-        String::from_utf8_lossy(&out.stdout).into_owned(),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    )
-}
-
-fn ok(args: &[&str]) -> Value {
-    let (code, out, err) = run(args);
-    assert_eq!(code, 0, "polbrdf {args:?}: {err}");
-    serde_json::from_str(&out).expect("JSON on stdout")
+    scratch_dir("mitsuba")
 }
 
 fn path(p: &Path) -> String {

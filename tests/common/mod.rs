@@ -72,3 +72,33 @@ pub fn reversed(g: &[[f64; 4]; 4]) -> [[f64; 4]; 4] {
     }
     o
 }
+
+/// Run the real `polbrdf` binary: (exit code, stdout, stderr).
+pub fn run(args: &[&str]) -> (i32, String, String) {
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_polbrdf"))
+        .args(args)
+        .output()
+        .expect("run polbrdf");
+    (
+        out.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+/// Run `polbrdf`, require exit code 0 and return the JSON it printed.
+pub fn ok(args: &[&str]) -> Value {
+    let (code, out, err) = run(args);
+    assert_eq!(code, 0, "polbrdf {args:?}: {err}");
+    serde_json::from_str(&out).expect("JSON on stdout")
+}
+
+/// A fresh scratch directory `polbrdf-<name>-<pid>-<k>` under the system
+/// temporary directory.
+pub fn scratch_dir(name: &str) -> std::path::PathBuf {
+    static COUNTER: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+    let k = COUNTER.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
+    let d = std::env::temp_dir().join(format!("polbrdf-{name}-{}-{k}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}

@@ -7,7 +7,7 @@ use crate::spec::{self, ScattererSpec, Spec, canonical};
 use crate::storage::{JobRow, Status, rfc3339};
 use axum::Json;
 use axum::body::Bytes;
-use axum::extract::rejection::{BytesRejection, FailedToBufferBody, QueryRejection};
+use axum::extract::rejection::{BytesRejection, QueryRejection};
 use axum::extract::{Path, Query, State};
 use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
@@ -279,14 +279,7 @@ pub async fn create_brdf(
             return Err(ApiError::UnsupportedMediaType(ct.to_string()));
         }
     }
-    let body = body.map_err(|e| match e {
-        BytesRejection::FailedToBufferBody(FailedToBufferBody::LengthLimitError(_)) => {
-            ApiError::PayloadTooLarge {
-                limit: state.0.config.max_body_bytes,
-            }
-        }
-        other => ApiError::BadBody(other.body_text()),
-    })?;
+    let body = body.map_err(|e| ApiError::from_body(e, state.0.config.max_body_bytes))?;
     let text = std::str::from_utf8(&body).map_err(|e| {
         ApiError::InvalidSpec(spec::SpecError {
             path: "$".into(),

@@ -200,3 +200,17 @@ impl IntoResponse for ApiError {
         res
     }
 }
+
+impl ApiError {
+    /// A body that could not be read: over `--max-body-bytes` is 413, any
+    /// other failure 400.
+    pub fn from_body(e: axum::extract::rejection::BytesRejection, limit: usize) -> Self {
+        use axum::extract::rejection::{BytesRejection, FailedToBufferBody};
+        match e {
+            BytesRejection::FailedToBufferBody(FailedToBufferBody::LengthLimitError(_)) => {
+                ApiError::PayloadTooLarge { limit }
+            }
+            other => ApiError::BadBody(other.body_text()),
+        }
+    }
+}

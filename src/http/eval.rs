@@ -11,7 +11,7 @@ use crate::spec::canonical;
 use crate::storage::JobRow;
 use axum::Json;
 use axum::body::Bytes;
-use axum::extract::rejection::{BytesRejection, FailedToBufferBody, QueryRejection};
+use axum::extract::rejection::{BytesRejection, QueryRejection};
 use axum::extract::{Path, Query, State};
 use axum::http::{HeaderValue, header};
 use axum::response::{IntoResponse, Response};
@@ -307,14 +307,7 @@ pub async fn post_eval(
     Path(id): Path<String>,
     body: Result<Bytes, BytesRejection>,
 ) -> Result<Response, ApiError> {
-    let body = body.map_err(|e| match e {
-        BytesRejection::FailedToBufferBody(FailedToBufferBody::LengthLimitError(_)) => {
-            ApiError::PayloadTooLarge {
-                limit: state.0.config.max_body_bytes,
-            }
-        }
-        other => ApiError::BadBody(other.body_text()),
-    })?;
+    let body = body.map_err(|e| ApiError::from_body(e, state.0.config.max_body_bytes))?;
     let de = &mut serde_json::Deserializer::from_slice(&body);
     let req: EvalRequest = serde_path_to_error::deserialize(de).map_err(|e| {
         let path = e.path().to_string();

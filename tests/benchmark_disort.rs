@@ -663,6 +663,9 @@ fn disort_3_4_5_reflected_intensities_with_delta_m_and_single_scattering_correct
                 streams: nstr / 2,
                 polarized: false,
                 delta_m: true,
+                // DISORT corrects single scattering only (its IMS term acts
+                // on downward radiance near the beam).
+                secondary_scattering: false,
                 start_factor: 0.01,
                 ..Settings::default()
             },

@@ -14,6 +14,7 @@
 pub mod accuracy;
 pub mod layer;
 pub mod phase;
+pub mod secondary;
 pub mod truncation;
 
 use crate::physics::expansion::GreekCoefficients;
@@ -96,6 +97,10 @@ pub struct Settings {
     /// single-scattering correction at user angles ([`truncation`]); a no-op
     /// when every series fits the quadrature.
     pub delta_m: bool,
+    /// With delta-M, also correct double scattering through the truncated
+    /// peak at user angles ([`secondary`]); off only to compare with codes
+    /// that correct single scattering alone (DISORT's reflected intensities).
+    pub secondary_scattering: bool,
     /// Solve even when a series is [`SolverError::Unresolved`]: only for the
     /// coarse solves of an error estimate (`accuracy`), whose job is to be
     /// worse than the answer.
@@ -111,6 +116,7 @@ impl Default for Settings {
             max_order: None,
             fourier_tolerance: 1e-9,
             delta_m: true,
+            secondary_scattering: true,
             allow_unresolved: false,
         }
     }
@@ -722,7 +728,13 @@ pub fn reflection_observed(
         mu: grid.mu_u.clone(),
         rho,
         direct: grid.mu_u.iter().map(|m| (-tau_total / m).exp()).collect(),
-        correction: truncated.and_then(|t| t.correction),
+        correction: truncated.and_then(|t| t.correction).map(|c| {
+            if original.settings.secondary_scattering {
+                c.with_secondary(&grid.mu_u)
+            } else {
+                c
+            }
+        }),
     })
 }
 

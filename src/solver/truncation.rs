@@ -36,11 +36,19 @@
 //! corrected the same way (they otherwise carry the truncated phase matrix,
 //! whose negative lobes gave negative radiances at 4 streams); Lambertian
 //! reflections are not (the base depolarizes and sees the azimuthal average).
+//!
+//! **Secondary scattering** ([`super::secondary`]): double scattering through
+//! the truncated peak, the exact minus what the truncated solve contains, at
+//! the user cosines of the solve ([`SingleScatterCorrection::with_secondary`]).
+//! It removes the backscatter-glory error and most of the grazing one of
+//! forward-peaked Mie spheres (docs/solver.md).
 
 use super::phase::geometric_phase_matrix;
-use super::{Layer, Problem, SolverError, Thickness};
+use super::secondary::{ScaledLayer, secondary};
+use super::{Layer, Problem, SolverError, Thickness, fourier_sum};
 use crate::physics::expansion::GreekCoefficients;
 use crate::physics::stokes::Mueller;
+use faer::Mat;
 
 /// One layer of the single-scattering correction: original and scaled
 /// optical properties, depth of its top in both stacks.
@@ -56,6 +64,8 @@ struct CorrectionLayer {
     tau_t: f64,
     tau_top_t: f64,
     coef_t: GreekCoefficients,
+    /// The removed forward fraction per diagonal element `(f, f₂₃, f₂₃, f₄)`.
+    fx: [f64; 4],
 }
 
 /// The exact-minus-truncated single-scattering BRDF of a stack.
@@ -67,6 +77,12 @@ pub struct SingleScatterCorrection {
     /// scaled thickness of the stack (single-scattering paths that reflect
     /// at the base once or twice are corrected too).
     mirror: Option<(MirrorFn, f64)>,
+    /// The secondary-scattering correction ([`super::secondary`]) at the
+    /// user cosines of a solve: the cosines and one matrix per Fourier
+    /// order (the layout of [`super::ReflectionFourier::rho`]).
+    secondary: Option<(Vec<f64>, Vec<Mat<f64>>)>,
+    /// Streams of the solve (quadrature of the truncated solution).
+    streams: usize,
 }
 
 /// Reflection Mueller matrix of a mirror base as a function of `μ`.
@@ -78,6 +94,10 @@ impl std::fmt::Debug for SingleScatterCorrection {
             .field("layers", &self.layers)
             .field("polarized", &self.polarized)
             .field("mirror_under_stack_of", &self.mirror.as_ref().map(|m| m.1))
+            .field(
+                "secondary_orders",
+                &self.secondary.as_ref().map(|s| s.1.len()),
+            )
             .finish()
     }
 }
@@ -122,6 +142,7 @@ pub fn delta_m(problem: &Problem) -> Result<Truncated, SolverError> {
                 tau_t: tau,
                 tau_top_t: top_t,
                 coef_t: c.clone(),
+                fx: [0.0; 4],
             });
             top_t += tau;
             continue;
@@ -196,6 +217,7 @@ pub fn delta_m(problem: &Problem) -> Result<Truncated, SolverError> {
             tau_t,
             tau_top_t: top_t,
             coef_t,
+            fx: [f, f23, f23, f4],
         });
         top_t += tau_t;
     }
@@ -210,6 +232,8 @@ pub fn delta_m(problem: &Problem) -> Result<Truncated, SolverError> {
                 }
                 _ => None,
             },
+            secondary: None,
+            streams: n,
         }),
     })
 }
@@ -332,11 +356,65 @@ fn layer_single_scattering(
 }
 
 impl SingleScatterCorrection {
+    /// Add the secondary-scattering correction ([`super::secondary`]) at
+    /// the user cosines `mu` of a solve; [`SingleScatterCorrection::brdf`]
+    /// then includes it for directions among those cosines.
+    pub fn with_secondary(mut self, mu: &[f64]) -> Self {
+        let rho = secondary(
+            &self.scaled_layers(),
+            mu,
+            self.polarized,
+            Some(self.streams),
+        );
+        self.secondary = (!rho.is_empty()).then(|| (mu.to_vec(), rho));
+        self
+    }
+
+    /// The layers in scaled depths, as [`super::secondary`] takes them.
+    fn scaled_layers(&self) -> Vec<ScaledLayer> {
+        self.layers
+            .iter()
+            .map(|l| ScaledLayer {
+                top: l.tau_top_t,
+                thickness: l.tau_t,
+                full: l.coef.clone(),
+                omega_full: l.omega,
+                trunc: l.coef_t.clone(),
+                omega_trunc: l.omega_t,
+                fx: l.fx,
+            })
+            .collect()
+    }
+
+    /// The secondary-scattering part alone at user cosines `mu`, `mu0` of
+    /// the solve (zero elsewhere or when not computed).
+    pub fn secondary_brdf(&self, mu: f64, mu0: f64, dphi_prop: f64) -> Mueller {
+        let Some((cosines, rho)) = &self.secondary else {
+            return [[0.0; 4]; 4];
+        };
+        let (Some(iu), Some(iv)) = (
+            cosines.iter().position(|&x| x == mu),
+            cosines.iter().position(|&x| x == mu0),
+        ) else {
+            return [[0.0; 4]; 4];
+        };
+        let ns = if self.polarized { 4 } else { 1 };
+        let mut f = fourier_sum(rho, ns, iu, iv, dphi_prop);
+        for row in &mut f {
+            for x in row.iter_mut() {
+                *x /= mu0;
+            }
+        }
+        f
+    }
+
     /// `f_TMS − f_ss'` for outgoing cosine `mu`, incident cosine `mu0` and
     /// propagation azimuth difference `dphi_prop` (meridian frames),
-    /// including the single-scattering paths via a mirror base.
+    /// including the single-scattering paths via a mirror base, plus the
+    /// secondary-scattering correction when `mu` and `mu0` are user cosines
+    /// of the solve ([`SingleScatterCorrection::with_secondary`]).
     pub fn brdf(&self, mu: f64, mu0: f64, dphi_prop: f64) -> Mueller {
-        let mut out = [[0.0; 4]; 4];
+        let mut out = self.secondary_brdf(mu, mu0, dphi_prop);
         let mirror = self.mirror.as_ref();
         for l in &self.layers {
             if l.coef_t == l.coef && l.omega == l.omega_t {
@@ -583,5 +661,244 @@ mod tests {
             }
         }
         assert!(worst < 1e-3, "{worst:e}");
+    }
+
+    /// Brute-force double scattering of one layer (top at 0, thickness
+    /// `tau`): `(1/4π)² ∫ Z₂(Ω ← Ω₁) Z₁(Ω₁ ← Ω₀) G(ν₁) dΩ₁ / μ0` by a product
+    /// rule on the sphere (Gauss–Legendre with `n` nodes per hemisphere in
+    /// `ν₁`, `nphi` trapezoidal points in `φ₁`), from the geometric phase
+    /// matrices: independent of the Fourier machinery of `secondary`.
+    #[allow(clippy::too_many_arguments)]
+    fn brute_double(
+        second: &GreekCoefficients,
+        first: &GreekCoefficients,
+        tau: f64,
+        mu: f64,
+        mu0: f64,
+        dphi: f64,
+        n: usize,
+        nphi: usize,
+        graded: bool,
+    ) -> Mueller {
+        use crate::physics::quadrature::double_gauss;
+        use crate::solver::secondary::geometry;
+        let eval = |c: &GreekCoefficients| {
+            let c = c.clone();
+            move |x: f64| {
+                let v = c.evaluate(&[x]);
+                [v.a1[0], v.a2[0], v.a3[0], v.a4[0], v.b1[0], v.b2[0]]
+            }
+        };
+        let (f2, f1) = (eval(second), eval(first));
+        let (x, w) = if graded {
+            crate::solver::secondary::graded_gauss(n, tau)
+        } else {
+            double_gauss(n)
+        };
+        let mut out = [[0.0; 4]; 4];
+        for (&xk, &wk) in x.iter().zip(&w) {
+            for up in [true, false] {
+                let nu1 = if up { xk } else { -xk };
+                let g = geometry(1.0 / mu0, 1.0 / mu, 1.0 / xk, up, (0.0, tau), (0.0, tau));
+                for p in 0..nphi {
+                    let phi1 = 2.0 * std::f64::consts::PI * p as f64 / nphi as f64;
+                    let z1 = geometric_phase_matrix(&f1, -mu0, 0.0, nu1, phi1);
+                    let z2 = geometric_phase_matrix(&f2, nu1, phi1, mu, dphi);
+                    let zz = mul(&z2, &z1);
+                    let wt = wk * 2.0 * std::f64::consts::PI / nphi as f64 * g
+                        / (16.0 * std::f64::consts::PI * std::f64::consts::PI * mu0);
+                    for i in 0..4 {
+                        for j in 0..4 {
+                            out[i][j] += wt * zz[i][j];
+                        }
+                    }
+                }
+            }
+        }
+        out
+    }
+
+    /// A polarized layer truncated at 2 streams (Garcia–Siewert aerosol,
+    /// 14 terms, `f = β₄/9`).
+    fn gs_problem(tau: f64, streams: usize) -> Problem {
+        Problem {
+            layers: vec![Layer {
+                thickness: Thickness::Finite(tau),
+                albedo: 0.9,
+                coef: crate::solver::phase::tests_support::garcia_siewert(),
+            }],
+            base: Base::Black,
+            settings: Settings {
+                streams,
+                start_factor: 1e-3,
+                ..Settings::default()
+            },
+        }
+    }
+
+    /// The secondary correction is the double scattering of the exact
+    /// kernel `ω̂ (P − f δ)` minus that of `ω' P'` in the scaled layer
+    /// (`secondary` module docs), element by element of the Mueller matrix:
+    /// its Fourier form (kernel tables, `ν` quadrature, symmetries, δ paths in
+    /// closed form) against a brute-force integral over the sphere of
+    /// products of geometric phase matrices. With `streams = Some(N)` the
+    /// truncated part is the `N`-point quadrature of the same integral (what
+    /// the discrete-ordinate solve contains). The two `ν` rules integrate the
+    /// smooth geometry `G` differently (14 against 64 nodes per panel):
+    /// measured 1e-7 of the largest element.
+    #[test]
+    fn secondary_is_the_double_scattering_difference() {
+        use crate::solver::secondary::{geometry, secondary};
+        let p = gs_problem(0.7, 2);
+        let c = delta_m(&p).unwrap().correction.unwrap();
+        let l = &c.layers[0];
+        let layers = c.scaled_layers();
+        let mu = [0.25, 0.6, 1.0];
+        let (w_hat, w_t) = (l.omega, l.omega_t);
+        for streams in [None, Some(2)] {
+            let rho = secondary(&layers, &mu, true, streams);
+            let mut worst: f64 = 0.0;
+            let mut scale: f64 = 0.0;
+            for (iu, &m) in mu.iter().enumerate() {
+                for (iv, &m0) in mu.iter().enumerate() {
+                    for dphi in [0.0, 1.3, std::f64::consts::PI] {
+                        let mut got = fourier_sum(&rho, 4, iu, iv, dphi);
+                        got.iter_mut().flatten().for_each(|x| *x /= m0);
+                        let full =
+                            brute_double(&l.coef, &l.coef, l.tau_t, m, m0, dphi, 64, 64, true);
+                        let n_t = streams.unwrap_or(64);
+                        let trunc = brute_double(
+                            &l.coef_t,
+                            &l.coef_t,
+                            l.tau_t,
+                            m,
+                            m0,
+                            dphi,
+                            n_t,
+                            64,
+                            streams.is_none(),
+                        );
+                        // δ paths: ω̂² [Z_P F G(ν = −μ0) + F Z_P G(ν = μ)] / (4π μ0).
+                        let f = |x: f64| {
+                            let v = l.coef.evaluate(&[x]);
+                            [v.a1[0], v.a2[0], v.a3[0], v.a4[0], v.b1[0], v.b2[0]]
+                        };
+                        let z = geometric_phase_matrix(&f, -m0, 0.0, m, dphi);
+                        let g = |c: f64, up: bool| {
+                            geometry(1.0 / m0, 1.0 / m, c, up, (0.0, l.tau_t), (0.0, l.tau_t))
+                        };
+                        let (gd, gu) = (g(1.0 / m0, false), g(1.0 / m, true));
+                        for i in 0..4 {
+                            for j in 0..4 {
+                                let delta = w_hat * w_hat * z[i][j] * (l.fx[j] * gd + l.fx[i] * gu)
+                                    / (4.0 * std::f64::consts::PI * m0);
+                                let want =
+                                    w_hat * w_hat * full[i][j] - w_t * w_t * trunc[i][j] - delta;
+                                scale = scale.max(want.abs());
+                                worst = worst.max((got[i][j] - want).abs());
+                            }
+                        }
+                    }
+                }
+            }
+            eprintln!("streams {streams:?}: {:.2e}", worst / scale);
+            assert!(
+                worst < 1e-6 * scale,
+                "streams {streams:?}: Fourier form vs brute force {worst:e} (scale {scale:e})"
+            );
+        }
+    }
+
+    /// Without a truncated layer there is nothing to correct.
+    #[test]
+    fn no_secondary_correction_without_truncation() {
+        use crate::solver::secondary::{ScaledLayer, secondary};
+        let coef = crate::solver::phase::tests_support::garcia_siewert();
+        let layer = ScaledLayer {
+            top: 0.0,
+            thickness: 1.0,
+            full: coef.clone(),
+            omega_full: 0.9,
+            trunc: coef,
+            omega_trunc: 0.9,
+            fx: [0.0; 4],
+        };
+        assert!(secondary(&[layer], &[0.3, 1.0], true, Some(8)).is_empty());
+    }
+
+    /// A thin layer reflects by single and double scattering: with delta-M
+    /// at 3 streams (GS aerosol, 14 terms cut to 6) the TMS and secondary
+    /// corrections give the exact single plus the exact double scattering
+    /// of the original layer (full phase matrix, unscaled depths; the
+    /// double by brute force over the sphere), up to triple scattering,
+    /// `O(ωτ/μ)` of the double (measured 1.3e-3 at τ = 1e-3). The TMS
+    /// correction alone leaves the truncated, 3-stream double scattering
+    /// (measured 0.61 of it).
+    #[test]
+    fn thin_layer_carries_the_exact_double_scattering() {
+        let tau = 1e-3;
+        let p = gs_problem(tau, 3);
+        let mu = [0.3, 0.65, 1.0];
+        let r = reflection(&p, &mu).unwrap();
+        let c = r.correction.as_ref().unwrap();
+        let coef = &p.layers[0].coef;
+        let (mut worst, mut worst_tms, mut scale): (f64, f64, f64) = (0.0, 0.0, 0.0);
+        for (iu, &m) in mu.iter().enumerate() {
+            for (iv, &m0) in mu.iter().enumerate() {
+                for dphi in [0.0, 1.1, 2.6] {
+                    let got = r.brdf(iu, iv, dphi);
+                    let sec = c.secondary_brdf(m, m0, dphi);
+                    let single = single_scattering(&p, m, m0, dphi);
+                    let double = brute_double(coef, coef, tau, m, m0, dphi, 64, 64, true);
+                    for i in 0..4 {
+                        for j in 0..4 {
+                            let want = single[i][j] + 0.81 * double[i][j];
+                            scale = scale.max((0.81 * double[i][j]).abs());
+                            worst = worst.max((got[i][j] - want).abs());
+                            worst_tms = worst_tms.max((got[i][j] - sec[i][j] - want).abs());
+                        }
+                    }
+                }
+            }
+        }
+        eprintln!(
+            "double: {:.2e} with, {:.2e} without",
+            worst / scale,
+            worst_tms / scale
+        );
+        assert!(
+            worst < 1e-2 * scale,
+            "with: {:e} of the double",
+            worst / scale
+        );
+        assert!(worst_tms > 10.0 * worst, "the test must see the correction");
+    }
+
+    /// Polarized reciprocity `f(μ, μ0, Δφ) = Δ f(μ0, μ, −Δφ)ᵀ Δ` holds for
+    /// the corrected BRDF of a truncated layer (TMS and secondary terms
+    /// included).
+    #[test]
+    fn corrected_brdf_is_reciprocal() {
+        let p = gs_problem(0.8, 3);
+        let mu = [0.15, 0.4, 0.77, 1.0];
+        let r = reflection(&p, &mu).unwrap();
+        assert!(r.correction.as_ref().unwrap().secondary.is_some());
+        let d = [1.0, 1.0, -1.0, 1.0];
+        let (mut worst, mut scale): (f64, f64) = (0.0, 0.0);
+        for iu in 0..mu.len() {
+            for iv in 0..mu.len() {
+                for dphi in [0.0, 0.7, 2.0, 3.5] {
+                    let a = r.brdf(iu, iv, dphi);
+                    let b = r.brdf(iv, iu, -dphi);
+                    for i in 0..4 {
+                        for j in 0..4 {
+                            scale = scale.max(a[i][j].abs());
+                            worst = worst.max((a[i][j] - d[i] * b[j][i] * d[j]).abs());
+                        }
+                    }
+                }
+            }
+        }
+        assert!(worst < 1e-8 * scale, "{worst:e} of {scale:e}");
     }
 }

@@ -186,7 +186,8 @@ pub struct ReflectionFourier {
     pub ns: usize,
     /// User cosines (outgoing and incident).
     pub mu: Vec<f64>,
-    /// One matrix per order `m = 0..`.
+    /// One matrix per order `m = 0..`, including the secondary-scattering
+    /// correction of delta-M truncated layers ([`secondary`]).
     pub rho: Vec<Mat<f64>>,
     /// Total direct transmission of the stack along each user direction
     /// (down and back up is its square), for the specular term.
@@ -723,18 +724,27 @@ pub fn reflection_observed(
             Thickness::Infinite => f64::INFINITY,
         })
         .sum();
+    // The secondary-scattering correction of truncated layers is a Fourier
+    // series at the user cosines: added to the solve's coefficients (all
+    // orders of the full series), so that tables carry it too.
+    let correction = truncated.and_then(|t| t.correction);
+    if let Some(c) = correction
+        .as_ref()
+        .filter(|_| original.settings.secondary_scattering)
+    {
+        for (m, x) in c.secondary(&grid.mu_u).into_iter().enumerate() {
+            match rho.get_mut(m) {
+                Some(r) => *r += &x,
+                None => rho.push(x),
+            }
+        }
+    }
     Ok(ReflectionFourier {
         ns,
         mu: grid.mu_u.clone(),
         rho,
         direct: grid.mu_u.iter().map(|m| (-tau_total / m).exp()).collect(),
-        correction: truncated.and_then(|t| t.correction).map(|c| {
-            if original.settings.secondary_scattering {
-                c.with_secondary(&grid.mu_u)
-            } else {
-                c
-            }
-        }),
+        correction,
     })
 }
 

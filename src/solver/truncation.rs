@@ -39,13 +39,14 @@
 //!
 //! **Secondary scattering** ([`super::secondary`]): double scattering through
 //! the truncated peak, the exact minus what the truncated solve contains, at
-//! the user cosines of the solve ([`SingleScatterCorrection::with_secondary`]).
+//! the user cosines of the solve ([`SingleScatterCorrection::secondary`]),
+//! added to the solve's Fourier coefficients.
 //! It removes the backscatter-glory error and most of the grazing one of
 //! forward-peaked Mie spheres (docs/solver.md).
 
 use super::phase::geometric_phase_matrix;
 use super::secondary::{ScaledLayer, secondary};
-use super::{Layer, Problem, SolverError, Thickness, fourier_sum};
+use super::{Layer, Problem, SolverError, Thickness};
 use crate::physics::expansion::GreekCoefficients;
 use crate::physics::stokes::Mueller;
 use faer::Mat;
@@ -77,10 +78,6 @@ pub struct SingleScatterCorrection {
     /// scaled thickness of the stack (single-scattering paths that reflect
     /// at the base once or twice are corrected too).
     mirror: Option<(MirrorFn, f64)>,
-    /// The secondary-scattering correction ([`super::secondary`]) at the
-    /// user cosines of a solve: the cosines and one matrix per Fourier
-    /// order (the layout of [`super::ReflectionFourier::rho`]).
-    secondary: Option<(Vec<f64>, Vec<Mat<f64>>)>,
     /// Streams of the solve (quadrature of the truncated solution).
     streams: usize,
 }
@@ -94,10 +91,6 @@ impl std::fmt::Debug for SingleScatterCorrection {
             .field("layers", &self.layers)
             .field("polarized", &self.polarized)
             .field("mirror_under_stack_of", &self.mirror.as_ref().map(|m| m.1))
-            .field(
-                "secondary_orders",
-                &self.secondary.as_ref().map(|s| s.1.len()),
-            )
             .finish()
     }
 }
@@ -232,7 +225,6 @@ pub fn delta_m(problem: &Problem) -> Result<Truncated, SolverError> {
                 }
                 _ => None,
             },
-            secondary: None,
             streams: n,
         }),
     })
@@ -356,18 +348,17 @@ fn layer_single_scattering(
 }
 
 impl SingleScatterCorrection {
-    /// Add the secondary-scattering correction ([`super::secondary`]) at
-    /// the user cosines `mu` of a solve; [`SingleScatterCorrection::brdf`]
-    /// then includes it for directions among those cosines.
-    pub fn with_secondary(mut self, mu: &[f64]) -> Self {
-        let rho = secondary(
+    /// The secondary-scattering correction ([`super::secondary`]) at the
+    /// user cosines `mu` of a solve, one matrix per Fourier order in the
+    /// layout of [`super::ReflectionFourier::rho`], to which the solve adds
+    /// it (empty when no layer is truncated).
+    pub fn secondary(&self, mu: &[f64]) -> Vec<Mat<f64>> {
+        secondary(
             &self.scaled_layers(),
             mu,
             self.polarized,
             Some(self.streams),
-        );
-        self.secondary = (!rho.is_empty()).then(|| (mu.to_vec(), rho));
-        self
+        )
     }
 
     /// The layers in scaled depths, as [`super::secondary`] takes them.
@@ -386,35 +377,11 @@ impl SingleScatterCorrection {
             .collect()
     }
 
-    /// The secondary-scattering part alone at user cosines `mu`, `mu0` of
-    /// the solve (zero elsewhere or when not computed).
-    pub fn secondary_brdf(&self, mu: f64, mu0: f64, dphi_prop: f64) -> Mueller {
-        let Some((cosines, rho)) = &self.secondary else {
-            return [[0.0; 4]; 4];
-        };
-        let (Some(iu), Some(iv)) = (
-            cosines.iter().position(|&x| x == mu),
-            cosines.iter().position(|&x| x == mu0),
-        ) else {
-            return [[0.0; 4]; 4];
-        };
-        let ns = if self.polarized { 4 } else { 1 };
-        let mut f = fourier_sum(rho, ns, iu, iv, dphi_prop);
-        for row in &mut f {
-            for x in row.iter_mut() {
-                *x /= mu0;
-            }
-        }
-        f
-    }
-
     /// `f_TMS − f_ss'` for outgoing cosine `mu`, incident cosine `mu0` and
     /// propagation azimuth difference `dphi_prop` (meridian frames),
-    /// including the single-scattering paths via a mirror base, plus the
-    /// secondary-scattering correction when `mu` and `mu0` are user cosines
-    /// of the solve ([`SingleScatterCorrection::with_secondary`]).
+    /// including the single-scattering paths via a mirror base.
     pub fn brdf(&self, mu: f64, mu0: f64, dphi_prop: f64) -> Mueller {
-        let mut out = self.secondary_brdf(mu, mu0, dphi_prop);
+        let mut out = [[0.0; 4]; 4];
         let mirror = self.mirror.as_ref();
         for l in &self.layers {
             if l.coef_t == l.coef && l.omega == l.omega_t {
@@ -748,6 +715,7 @@ mod tests {
     /// measured 1e-7 of the largest element.
     #[test]
     fn secondary_is_the_double_scattering_difference() {
+        use crate::solver::fourier_sum;
         use crate::solver::secondary::{geometry, secondary};
         let p = gs_problem(0.7, 2);
         let c = delta_m(&p).unwrap().correction.unwrap();
@@ -840,14 +808,16 @@ mod tests {
         let p = gs_problem(tau, 3);
         let mu = [0.3, 0.65, 1.0];
         let r = reflection(&p, &mu).unwrap();
-        let c = r.correction.as_ref().unwrap();
+        let mut q = p.clone();
+        q.settings.secondary_scattering = false;
+        let tms = reflection(&q, &mu).unwrap();
         let coef = &p.layers[0].coef;
         let (mut worst, mut worst_tms, mut scale): (f64, f64, f64) = (0.0, 0.0, 0.0);
         for (iu, &m) in mu.iter().enumerate() {
             for (iv, &m0) in mu.iter().enumerate() {
                 for dphi in [0.0, 1.1, 2.6] {
                     let got = r.brdf(iu, iv, dphi);
-                    let sec = c.secondary_brdf(m, m0, dphi);
+                    let got_tms = tms.brdf(iu, iv, dphi);
                     let single = single_scattering(&p, m, m0, dphi);
                     let double = brute_double(coef, coef, tau, m, m0, dphi, 64, 64, true);
                     for i in 0..4 {
@@ -855,7 +825,7 @@ mod tests {
                             let want = single[i][j] + 0.81 * double[i][j];
                             scale = scale.max((0.81 * double[i][j]).abs());
                             worst = worst.max((got[i][j] - want).abs());
-                            worst_tms = worst_tms.max((got[i][j] - sec[i][j] - want).abs());
+                            worst_tms = worst_tms.max((got_tms[i][j] - want).abs());
                         }
                     }
                 }
@@ -882,7 +852,8 @@ mod tests {
         let p = gs_problem(0.8, 3);
         let mu = [0.15, 0.4, 0.77, 1.0];
         let r = reflection(&p, &mu).unwrap();
-        assert!(r.correction.as_ref().unwrap().secondary.is_some());
+        // The secondary correction carries every order of the full series.
+        assert_eq!(r.rho.len(), p.layers[0].coef.beta.len());
         let d = [1.0, 1.0, -1.0, 1.0];
         let (mut worst, mut scale): (f64, f64) = (0.0, 0.0);
         for iu in 0..mu.len() {

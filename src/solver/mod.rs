@@ -732,7 +732,11 @@ pub fn reflection_observed(
         .as_ref()
         .filter(|_| original.settings.secondary_scattering)
     {
-        for (m, x) in c.secondary(&grid.mu_u).into_iter().enumerate() {
+        for (m, x) in c
+            .secondary(&grid.mu_u, original.settings.max_order)
+            .into_iter()
+            .enumerate()
+        {
             match rho.get_mut(m) {
                 Some(r) => *r += &x,
                 None => rho.push(x),

@@ -352,12 +352,14 @@ impl SingleScatterCorrection {
     /// user cosines `mu` of a solve, one matrix per Fourier order in the
     /// layout of [`super::ReflectionFourier::rho`], to which the solve adds
     /// it (empty when no layer is truncated).
-    pub fn secondary(&self, mu: &[f64]) -> Vec<Mat<f64>> {
+    /// `max_order`: the highest Fourier order wanted (`None`: all).
+    pub fn secondary(&self, mu: &[f64], max_order: Option<usize>) -> Vec<Mat<f64>> {
         secondary(
             &self.scaled_layers(),
             mu,
             self.polarized,
             Some(self.streams),
+            max_order,
         )
     }
 
@@ -724,7 +726,7 @@ mod tests {
         let mu = [0.25, 0.6, 1.0];
         let (w_hat, w_t) = (l.omega, l.omega_t);
         for streams in [None, Some(2)] {
-            let rho = secondary(&layers, &mu, true, streams);
+            let rho = secondary(&layers, &mu, true, streams, None);
             let mut worst: f64 = 0.0;
             let mut scale: f64 = 0.0;
             for (iu, &m) in mu.iter().enumerate() {
@@ -791,7 +793,7 @@ mod tests {
             omega_trunc: 0.9,
             fx: [0.0; 4],
         };
-        assert!(secondary(&[layer], &[0.3, 1.0], true, Some(8)).is_empty());
+        assert!(secondary(&[layer], &[0.3, 1.0], true, Some(8), None).is_empty());
     }
 
     /// A thin layer reflects by single and double scattering: with delta-M

@@ -43,34 +43,53 @@ use crate::physics::expansion::GreekCoefficients;
 use crate::physics::stokes::Mueller;
 
 /// One layer of the single-scattering correction: original and scaled
-/// optical properties, depth of its top in both stacks.
-#[derive(Clone, Debug)]
-struct CorrectionLayer {
+/// optical properties, depth of its top in both stacks. Plain data: BRDF
+/// tables store it (docs/table-format.md) and evaluate the correction at
+/// query time.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CorrectionLayer {
     /// `ω/(1 − ωf)`: the TMS albedo of the full phase matrix in the scaled
     /// stack (`ω` when the layer is not truncated).
-    omega: f64,
-    tau: f64,
-    tau_top: f64,
-    coef: GreekCoefficients,
-    omega_t: f64,
-    tau_t: f64,
-    tau_top_t: f64,
-    coef_t: GreekCoefficients,
+    pub omega: f64,
+    /// Scaled optical thickness `τ' = (1 − ωf) τ` (may be infinite).
+    pub tau: f64,
+    /// Scaled depth of the layer's top.
+    pub tau_top: f64,
+    /// The full phase-matrix expansion.
+    pub coef: GreekCoefficients,
+    /// Albedo of the truncated layer `ω'`.
+    pub omega_t: f64,
+    /// Thickness of the truncated layer (`τ'`).
+    pub tau_t: f64,
+    /// Depth of its top in the truncated stack.
+    pub tau_top_t: f64,
+    /// The truncated expansion.
+    pub coef_t: GreekCoefficients,
+}
+
+impl CorrectionLayer {
+    /// Whether the layer was truncated (otherwise its two single-scattering
+    /// terms are equal and cancel).
+    pub fn is_truncated(&self) -> bool {
+        !(self.coef_t == self.coef && self.omega == self.omega_t)
+    }
 }
 
 /// The exact-minus-truncated single-scattering BRDF of a stack.
 #[derive(Clone)]
 pub struct SingleScatterCorrection {
-    layers: Vec<CorrectionLayer>,
-    polarized: bool,
+    /// Every layer of the stack, top first.
+    pub layers: Vec<CorrectionLayer>,
+    /// Full Mueller matrices (`false`: f11 only).
+    pub polarized: bool,
     /// A mirror base under a finite stack: its reflection matrix and the
     /// scaled thickness of the stack (single-scattering paths that reflect
     /// at the base once or twice are corrected too).
-    mirror: Option<(MirrorFn, f64)>,
+    pub mirror: Option<(MirrorFn, f64)>,
 }
 
 /// Reflection Mueller matrix of a mirror base as a function of `μ`.
-type MirrorFn = std::sync::Arc<dyn Fn(f64) -> Mueller + Send + Sync>;
+pub type MirrorFn = std::sync::Arc<dyn Fn(f64) -> Mueller + Send + Sync>;
 
 impl std::fmt::Debug for SingleScatterCorrection {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -339,8 +358,8 @@ impl SingleScatterCorrection {
         let mut out = [[0.0; 4]; 4];
         let mirror = self.mirror.as_ref();
         for l in &self.layers {
-            if l.coef_t == l.coef && l.omega == l.omega_t {
-                continue; // not truncated: the two terms are equal
+            if !l.is_truncated() {
+                continue; // the two terms are equal
             }
             let full = layer_single_scattering(
                 &l.coef,

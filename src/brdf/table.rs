@@ -158,9 +158,9 @@ impl StoredCorrection {
 pub struct EstimateMeta {
     /// Estimated max |error of f11| relative to max f11.
     pub max_err_f11: f64,
-    /// Streams of the three solves used (`N/4`, `N/2`, `N`).
+    /// Streams of the three solves used (`N/2`, `3N/4`, `N`).
     pub streams: [usize; 3],
-    /// Observed contraction of successive differences.
+    /// Observed contraction `d(3N/4, N)/d(N/2, 3N/4)` (informational).
     pub contraction: f64,
 }
 

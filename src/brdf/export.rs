@@ -111,7 +111,7 @@ pub fn dense(table: &Table, grid: &DenseGrid) -> Dense {
                     let c = wt.coefficients(&table.grid, to, ti);
                     for &d in &dphi {
                         let mut m = fourier_synthesis(&c, wt.ns, d);
-                        wt.add_correction(&mut m, ti, to, d);
+                        wt.complete(&mut m, ti, to, d);
                         row.extend(m.iter().flatten());
                     }
                 }

@@ -552,8 +552,8 @@ mod tests {
         assert_eq!(back.wavelengths[0].correction, t.wavelengths[0].correction);
         let (a, b) = (&t.wavelengths[0], &back.wavelengths[0]);
         let (mut fa, mut fb) = ([[0.0; 4]; 4], [[0.0; 4]; 4]);
-        a.add_correction(&mut fa, 80.0, 85.0, 0.3);
-        b.add_correction(&mut fb, 80.0, 85.0, 0.3);
+        a.complete(&mut fa, 80.0, 85.0, 0.3);
+        b.complete(&mut fb, 80.0, 85.0, 0.3);
         assert_eq!(fa, fb);
         assert!(fa[0][0] != 0.0);
     }

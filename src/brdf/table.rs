@@ -497,20 +497,16 @@ impl WavelengthTable {
             self.ns,
             dphi_prop,
         );
-        self.add_correction(&mut f, theta_i_deg, theta_o_deg, dphi_prop);
+        self.complete(&mut f, theta_i_deg, theta_o_deg, dphi_prop);
         f
     }
 
     /// Add the stored single-scattering correction (T3), if any, at the
-    /// exact directions: it carries the forward peak that no Fourier
-    /// series of the table's length could.
-    pub fn add_correction(
-        &self,
-        f: &mut Mueller,
-        theta_i_deg: f64,
-        theta_o_deg: f64,
-        dphi_prop: f64,
-    ) {
+    /// exact directions (it carries the forward peak that no Fourier
+    /// series of the table's length could), then make the matrix
+    /// realizable (`solver::make_realizable`: the interpolation, like a
+    /// coarse solve, need not be).
+    pub fn complete(&self, f: &mut Mueller, theta_i_deg: f64, theta_o_deg: f64, dphi_prop: f64) {
         if let Some(c) = &self.correction {
             let d = c.correction.brdf(
                 mu_of_theta_deg(theta_o_deg),
@@ -523,6 +519,9 @@ impl WavelengthTable {
                     *x += y;
                 }
             }
+        }
+        if self.ns == 4 {
+            solver::make_realizable(f);
         }
     }
 

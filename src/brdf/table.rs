@@ -160,8 +160,10 @@ pub struct EstimateMeta {
     pub max_err_f11: f64,
     /// Streams of the three solves used (`N/2`, `3N/4`, `N`).
     pub streams: [usize; 3],
-    /// Observed contraction `d(3N/4, N)/d(N/2, 3N/4)` (informational).
-    pub contraction: f64,
+    /// Observed contraction `d(3N/4, N)/d(N/2, 3N/4)` (informational;
+    /// `null` when undefined).
+    #[serde(default)]
+    pub contraction: Option<f64>,
 }
 
 /// Numerical settings of the solver, as recorded in the metadata.
@@ -280,13 +282,12 @@ fn build_with_streams(
         let t0 = Instant::now();
         let progress = |x: f64| (options.on_progress)(k, total, x);
         let (refl, streams, error_estimate) = match spec::stream_policy(spec) {
-            spec::StreamPolicy::Fixed(_) => (
-                solver::reflection_observed(&problem, &grid.mu, &|done, bound| {
-                    progress(done as f64 / bound.max(1) as f64)
-                })?,
-                problem.settings.streams,
-                None,
-            ),
+            spec::StreamPolicy::Fixed(_) => {
+                let e = solver::accuracy::reflection_with_estimate_observed(
+                    &problem, &grid.mu, &progress,
+                )?;
+                (e.reflection, problem.settings.streams, e.estimate)
+            }
             spec::StreamPolicy::Tolerance(t) => {
                 let e = solver::accuracy::reflection_to_tolerance(
                     &problem,
@@ -295,14 +296,14 @@ fn build_with_streams(
                     options.max_streams,
                     &progress,
                 )?;
-                let est = EstimateMeta {
-                    max_err_f11: e.estimate.max_err_f11,
-                    streams: e.estimate.streams,
-                    contraction: e.estimate.contraction,
-                };
-                (e.reflection, est.streams[2], Some(est))
+                (e.reflection, e.estimate.streams[2], e.estimate)
             }
         };
+        let error_estimate = Some(EstimateMeta {
+            max_err_f11: error_estimate.max_err_f11,
+            streams: error_estimate.streams,
+            contraction: error_estimate.contraction,
+        });
         let ns = refl.ns;
         let n = grid.len();
         let orders = refl.rho.len();
@@ -866,7 +867,8 @@ mod tests {
 
     /// A spec with `solver.tolerance` (and no `solver.streams`) is solved
     /// as `polbrdf solve` does it: the cheapest power-of-two streams meeting
-    /// the tolerance, recorded per wavelength with the estimate.
+    /// the tolerance, recorded per wavelength with the estimate; a spec
+    /// with fixed streams records its estimate too (from `N/2` and `3N/4`).
     #[test]
     fn tolerance_specs_record_streams_and_estimate() {
         let spec = crate::spec::parse(
@@ -883,7 +885,12 @@ mod tests {
         assert!(e.max_err_f11 <= 1e-3 || w.streams * 2 > crate::spec::MAX_STREAMS);
         let fixed = table(r#""black""#);
         assert_eq!(fixed.metadata.wavelengths[0].streams, 4);
-        assert!(fixed.metadata.wavelengths[0].error_estimate.is_none());
+        let e = fixed.metadata.wavelengths[0]
+            .error_estimate
+            .as_ref()
+            .expect("estimate");
+        assert_eq!(e.streams, [2, 3, 4]);
+        assert!(e.max_err_f11 > 0.0 && e.max_err_f11 < 1.0, "{e:?}");
     }
 
     /// The specular term is reported for mirror pairs only, and at normal

@@ -187,10 +187,16 @@ pub fn coherency_eigenvalues(m: &Mueller) -> [f64; 4] {
     if m.iter().flatten().any(|x| !x.is_finite()) {
         return [f64::NAN; 4];
     }
-    let h = coherency_matrix(m);
+    // Divided to unit size first (1/s overflows for subnormal s): subnormal inputs (e.g. e^{−700} behind a
+    // thick absorber) would otherwise lose the eigensolver (NaN).
+    let s = max_abs(m);
+    if s == 0.0 {
+        return [0.0; 4];
+    }
+    let h = coherency_matrix(&m.map(|row| row.map(|x| x / s)));
     let mat = Mat::<C64>::from_fn(4, 4, |i, j| h[i][j]);
     match mat.self_adjoint_eigenvalues(Side::Lower) {
-        Ok(ev) => [ev[3], ev[2], ev[1], ev[0]],
+        Ok(ev) => [ev[3] * s, ev[2] * s, ev[1] * s, ev[0] * s],
         Err(_) => [f64::NAN; 4],
     }
 }
@@ -265,11 +271,18 @@ fn positive_definite_shifted(h: &[[C64; 4]; 4], shift: f64) -> bool {
 /// `H + rel_tol m_11 1`, a few hundred flops; the eigendecomposition runs
 /// only for the rest), or not finite.
 pub fn realizable_projection(m: &Mueller, rel_tol: f64) -> Option<Mueller> {
-    if m.iter().flatten().any(|x| !x.is_finite()) || m.iter().flatten().all(|&x| x == 0.0) {
+    if m.iter().flatten().any(|x| !x.is_finite()) {
         return None;
     }
-    let h = coherency_matrix(m);
-    if positive_definite_shifted(&h, rel_tol * m[0][0].max(0.0)) {
+    // Work at unit size (subnormal entries would underflow in the squares
+    // of the factorisation and lose the eigensolver); scale back at the end.
+    let scale = max_abs(m);
+    if scale == 0.0 {
+        return None;
+    }
+    let unit = m.map(|row| row.map(|x| x / scale));
+    let h = coherency_matrix(&unit);
+    if positive_definite_shifted(&h, rel_tol * unit[0][0].max(0.0)) {
         return None;
     }
     let mat = Mat::<C64>::from_fn(4, 4, |i, j| h[i][j]);
@@ -287,7 +300,15 @@ pub fn realizable_projection(m: &Mueller, rel_tol: f64) -> Option<Mueller> {
             }
         }
     }
-    Some(mueller_of_coherency(&p))
+    Some(scaled(&mueller_of_coherency(&p), scale))
+}
+
+fn max_abs(m: &Mueller) -> f64 {
+    m.iter().flatten().fold(0.0, |a: f64, x| a.max(x.abs()))
+}
+
+fn scaled(m: &Mueller, a: f64) -> Mueller {
+    m.map(|row| row.map(|x| x * a))
 }
 
 /// Stokes criterion (necessary, weaker than Cloude's): the minimum over
@@ -336,6 +357,27 @@ mod tests {
 
     fn close(a: f64, b: f64, tol: f64) -> bool {
         (a - b).abs() <= tol
+    }
+
+    /// Subnormal matrices (values behind a thick absorber) are handled at
+    /// unit scale: finite eigenvalues, and the projection of a
+    /// non-realizable one is realizable.
+    #[test]
+    fn subnormal_matrices_keep_finite_eigenvalues_and_project() {
+        let bad: Mueller = [
+            [1.0, 0.3, 0.0, 0.0],
+            [1.05, 0.9, 0.1, 0.0],
+            [0.0, -0.1, 0.4, 0.2],
+            [0.0, 0.05, -0.2, 0.3],
+        ];
+        let tiny = bad.map(|r| r.map(|x| x * 1e-310));
+        let ev = coherency_eigenvalues(&tiny);
+        assert!(ev.iter().all(|x| x.is_finite()), "{ev:?}");
+        assert!(ev[3] < 0.0);
+        let p = realizable_projection(&tiny, 1e-12).expect("projected");
+        assert!(stokes_criterion_min(&p, 500) >= -1e-6 * p[0][0], "{p:?}");
+        let ev = coherency_eigenvalues(&p);
+        assert!(ev[3] >= -1e-9 * p[0][0], "{ev:?}");
     }
 
     /// `mueller_of_coherency` inverts `coherency_matrix` exactly.

@@ -319,6 +319,13 @@ fn scaled(m: &Mueller, a: f64) -> Mueller {
 /// `≥ 0` (up to sampling); by linearity checking fully polarized inputs is
 /// enough. `n_samples` is raised to at least 2.
 pub fn stokes_criterion_min(m: &Mueller, n_samples: usize) -> f64 {
+    // At unit scale: the squares of entries ~1e-162 (values behind a thick
+    // absorber) underflow and would give a spurious negative value.
+    let s = max_abs(m);
+    if !(s > 0.0 && s.is_finite()) {
+        return if s == 0.0 { 0.0 } else { f64::NAN };
+    }
+    let m = &m.map(|row| row.map(|x| x / s));
     let n = n_samples.max(2);
     let golden = std::f64::consts::PI * (3.0 - 5.0_f64.sqrt());
     let mut min = f64::INFINITY;
@@ -330,7 +337,7 @@ pub fn stokes_criterion_min(m: &Mueller, n_samples: usize) -> f64 {
         let d = out[0] - (out[1] * out[1] + out[2] * out[2] + out[3] * out[3]).sqrt();
         min = min.min(d);
     }
-    min
+    min * s
 }
 
 fn mul2(a: &Jones, b: &Jones) -> Jones {

@@ -110,7 +110,8 @@ pub fn dense(table: &Table, grid: &DenseGrid) -> Dense {
                 for &to in &grid.theta_o_deg {
                     let c = wt.coefficients(&table.grid, to, ti);
                     for &d in &dphi {
-                        let m = fourier_synthesis(&c, wt.ns, d);
+                        let mut m = fourier_synthesis(&c, wt.ns, d);
+                        wt.complete(&mut m, ti, to, d);
                         row.extend(m.iter().flatten());
                     }
                 }

@@ -1,21 +1,30 @@
-//! The binary table file, version 1 (docs/table-format.md, the normative
+//! The binary table file, version 3 (docs/table-format.md, the normative
 //! description). Little-endian throughout.
 //!
 //! ```text
 //! header (56 bytes)
 //!   0  8  magic  b"PBRDFTAB"
-//!   8  4  u32    format version (1)
+//!   8  4  u32    format version (3)
 //!  12  4  u32    data type of the coefficients: 1 = f32, 2 = f64
 //!  16  8  u64    payload length in bytes (everything after the header)
 //!  24 32  SHA-256 of header bytes 0..24 followed by the payload
 //! payload
 //!   u64 L, L bytes of UTF-8 JSON metadata
 //!   u32 W (wavelengths), u32 N (polar nodes), u32 ns (1 or 4), u32 flags
-//!       (bit 0: specular matrices present)
+//!       (bit 0: specular matrices present; bit 1: correction records)
 //!   f64[N] θ nodes (deg), f64[N] μ nodes, f64[W] wavelengths (nm; NaN: none)
 //!   u32[W] M_w (Fourier orders per wavelength)
 //!   per wavelength w: data[M_w][N (out)][N (in)][ns][ns]  f^m(μ_o, μ_i)
 //!                     then, if flag bit 0: data[N (in)][4][4]  specular S
+//!                     then, if flag bit 1: a correction record (below)
+//! correction record (always f64; the single-scattering correction T3)
+//!   u32 present (0/1); if 1:
+//!   u32 polarized (0/1), u32 K (layers), u32 streams of the solve,
+//!   f64 mirror depth τ', f64 n1, f64 n2, f64 k2  (all NaN: no mirror)
+//!   per layer: f64 ω, τ, τ_top, ω', τ', τ'_top (τ may be +inf), f64[4]
+//!     removed forward fractions (f, f₂₃, f₂₃, f₄), then the
+//!     full and the truncated expansion, each as six series
+//!     (β, α, ζ, δ, γ, ε), each a u32 length and that many f64
 //! ```
 //!
 //! Readers reject a short file, a bad magic, an unknown version or data
@@ -24,15 +33,18 @@
 
 use super::BrdfError;
 use super::grid::PolarGrid;
-use super::table::{Metadata, Table, WavelengthTable};
+use super::table::{Metadata, StoredCorrection, Table, WavelengthTable};
+use crate::physics::RefractiveIndex;
+use crate::physics::expansion::GreekCoefficients;
 use crate::physics::stokes::Mueller;
+use crate::solver::truncation::CorrectionLayer;
 use sha2::{Digest, Sha256};
 
 /// The first 8 bytes of every table file.
 pub const MAGIC: [u8; 8] = *b"PBRDFTAB";
 
 /// The format version this build writes and reads.
-pub const VERSION: u32 = 1;
+pub const VERSION: u32 = 3;
 
 /// Header size in bytes.
 pub const HEADER_LEN: usize = 56;
@@ -82,6 +94,7 @@ pub fn to_bytes(table: &Table, dtype: DataType) -> Result<Vec<u8>, BrdfError> {
     let n = table.grid.len();
     let ns = table.wavelengths.first().map_or(4, |w| w.ns);
     let has_spec = table.wavelengths.iter().any(|w| w.specular.is_some());
+    let has_corr = table.wavelengths.iter().any(|w| w.correction.is_some());
     for w in &table.wavelengths {
         if w.ns != ns || w.nodes != n || w.specular.is_some() != has_spec {
             return Err(fmt_err(
@@ -100,7 +113,7 @@ pub fn to_bytes(table: &Table, dtype: DataType) -> Result<Vec<u8>, BrdfError> {
         table.wavelengths.len() as u32,
         n as u32,
         ns as u32,
-        u32::from(has_spec),
+        u32::from(has_spec) | (u32::from(has_corr) << 1),
     ] {
         p.extend_from_slice(&x.to_le_bytes());
     }
@@ -128,6 +141,9 @@ pub fn to_bytes(table: &Table, dtype: DataType) -> Result<Vec<u8>, BrdfError> {
                 }
             }
         }
+        if has_corr {
+            put_correction(&mut p, w.correction.as_ref());
+        }
     }
     let mut out = Vec::with_capacity(HEADER_LEN + p.len());
     out.extend_from_slice(&MAGIC);
@@ -138,6 +154,132 @@ pub fn to_bytes(table: &Table, dtype: DataType) -> Result<Vec<u8>, BrdfError> {
     out.extend_from_slice(&sha);
     out.extend_from_slice(&p);
     Ok(out)
+}
+
+/// The correction record of one wavelength (module doc).
+fn put_correction(p: &mut Vec<u8>, c: Option<&StoredCorrection>) {
+    let Some(c) = c else {
+        p.extend_from_slice(&0u32.to_le_bytes());
+        return;
+    };
+    let corr = &c.correction;
+    for x in [
+        1,
+        u32::from(corr.polarized),
+        corr.layers.len() as u32,
+        corr.streams as u32,
+    ] {
+        p.extend_from_slice(&x.to_le_bytes());
+    }
+    let depth = corr.mirror.as_ref().map_or(f64::NAN, |m| m.1);
+    let (n1, n2, k2) = c
+        .mirror_indices
+        .map_or((f64::NAN, f64::NAN, f64::NAN), |(n1, n2)| (n1, n2.n, n2.k));
+    for x in [depth, n1, n2, k2] {
+        p.extend_from_slice(&x.to_le_bytes());
+    }
+    for l in &corr.layers {
+        for x in [l.omega, l.tau, l.tau_top, l.omega_t, l.tau_t, l.tau_top_t] {
+            p.extend_from_slice(&x.to_le_bytes());
+        }
+        for x in l.fx {
+            p.extend_from_slice(&x.to_le_bytes());
+        }
+        for g in [&l.coef, &l.coef_t] {
+            for series in [&g.beta, &g.alpha, &g.zeta, &g.delta, &g.gamma, &g.epsilon] {
+                p.extend_from_slice(&(series.len() as u32).to_le_bytes());
+                for x in series.iter() {
+                    p.extend_from_slice(&x.to_le_bytes());
+                }
+            }
+        }
+    }
+}
+
+/// Read a correction record (module doc).
+fn get_correction(c: &mut Cursor) -> Result<Option<StoredCorrection>, BrdfError> {
+    match c.u32("correction flag")? {
+        0 => return Ok(None),
+        1 => {}
+        x => {
+            return Err(fmt_err(format!("malformed table: correction flag {x}")));
+        }
+    }
+    let polarized = match c.u32("correction polarization")? {
+        0 => false,
+        1 => true,
+        x => {
+            return Err(fmt_err(format!(
+                "malformed table: correction polarization {x}"
+            )));
+        }
+    };
+    let k = c.u32("correction layers")? as usize;
+    let streams = c.u32("correction streams")? as usize;
+    let m = c.f64s(4, "correction mirror")?;
+    let mirror = if m.iter().all(|x| x.is_nan()) {
+        None
+    } else if m.iter().all(|x| x.is_finite()) && m[0] >= 0.0 && m[1] > 0.0 {
+        Some((m[0], m[1], RefractiveIndex::new(m[2], m[3])))
+    } else {
+        return Err(fmt_err(format!("malformed table: correction mirror {m:?}")));
+    };
+    let mut layers = Vec::with_capacity(k.min(1 << 16));
+    for _ in 0..k {
+        let v = c.f64s(6, "correction layer")?;
+        // Albedos and depths finite and ≥ 0; thicknesses may be +inf.
+        if v.iter().any(|x| x.is_nan() || *x < 0.0)
+            || [v[0], v[2], v[3], v[5]].iter().any(|x| !x.is_finite())
+        {
+            return Err(fmt_err(format!("malformed table: correction layer {v:?}")));
+        }
+        let f = c.f64s(4, "correction forward fractions")?;
+        if f.iter().any(|x| !(-1.0..=1.0).contains(x)) || !(0.0..1.0).contains(&f[0]) {
+            return Err(fmt_err(format!(
+                "malformed table: correction forward fractions {f:?}"
+            )));
+        }
+        let mut coefs = Vec::with_capacity(2);
+        for _ in 0..2 {
+            let mut series = Vec::with_capacity(6);
+            for _ in 0..6 {
+                let len = c.u32("expansion length")? as usize;
+                let s = c.f64s(len, "expansion")?;
+                if s.iter().any(|x| !x.is_finite()) {
+                    return Err(fmt_err(
+                        "malformed table: a correction expansion holds a non-finite value",
+                    ));
+                }
+                series.push(s);
+            }
+            let mut it = series.into_iter();
+            let mut next = || it.next().unwrap();
+            coefs.push(GreekCoefficients {
+                beta: next(),
+                alpha: next(),
+                zeta: next(),
+                delta: next(),
+                gamma: next(),
+                epsilon: next(),
+            });
+        }
+        let coef_t = coefs.pop().unwrap();
+        let coef = coefs.pop().unwrap();
+        layers.push(CorrectionLayer {
+            omega: v[0],
+            tau: v[1],
+            tau_top: v[2],
+            coef,
+            omega_t: v[3],
+            tau_t: v[4],
+            tau_top_t: v[5],
+            coef_t,
+            fx: [f[0], f[1], f[2], f[3]],
+        });
+    }
+    Ok(Some(StoredCorrection::from_parts(
+        layers, polarized, streams, mirror,
+    )))
 }
 
 /// A bounds-checked little-endian reader over the payload.
@@ -268,7 +410,7 @@ pub fn from_bytes(b: &[u8]) -> Result<Table, BrdfError> {
     if ns != 1 && ns != 4 {
         return Err(fmt_err(format!("malformed table: {ns} Stokes components")));
     }
-    if flags > 1 {
+    if flags > 3 {
         return Err(fmt_err(format!(
             "malformed table: unknown flags {flags:#x}"
         )));
@@ -316,6 +458,11 @@ pub fn from_bytes(b: &[u8]) -> Result<Table, BrdfError> {
         } else {
             None
         };
+        let correction = if flags & 2 == 2 {
+            get_correction(&mut c)?
+        } else {
+            None
+        };
         blocks.push(WavelengthTable {
             wavelength_nm: if wl[k].is_nan() { None } else { Some(wl[k]) },
             ns,
@@ -324,6 +471,7 @@ pub fn from_bytes(b: &[u8]) -> Result<Table, BrdfError> {
             f,
             specular,
             wall_time_ms: meta.wavelengths[k].wall_time_ms,
+            correction,
         });
     }
     if c.at != payload.len() {
@@ -405,11 +553,33 @@ mod tests {
         }
     }
 
+    /// A truncated solve's correction record (layers, expansions, mirror
+    /// indices) survives the round trip, and the rebuilt mirror closure
+    /// evaluates to the same BRDF.
+    #[test]
+    fn correction_records_round_trip() {
+        let text = r#"{"layers": [{"optical_thickness": 0.5, "scatterer": {"mie": {
+             "material": {"n": 1.5, "k": 0.001}, "radius_um": 1.0, "host_index": 1.0}}}],
+             "base": {"fresnel": {"material": {"n": 0.14, "k": 4.1}}},
+             "wavelengths_nm": [550], "solver": {"streams": 4}}"#;
+        let spec = crate::spec::parse(text).unwrap();
+        let t = Table::from_spec(&spec, PolarGrid::graded(6).unwrap()).unwrap();
+        assert!(t.wavelengths[0].correction.is_some());
+        let back = from_bytes(&to_bytes(&t, DataType::F32).unwrap()).unwrap();
+        assert_eq!(back.wavelengths[0].correction, t.wavelengths[0].correction);
+        let (a, b) = (&t.wavelengths[0], &back.wavelengths[0]);
+        let (mut fa, mut fb) = ([[0.0; 4]; 4], [[0.0; 4]; 4]);
+        a.complete(&mut fa, 80.0, 85.0, 0.3);
+        b.complete(&mut fb, 80.0, 85.0, 0.3);
+        assert_eq!(fa, fb);
+        assert!(fa[0][0] != 0.0);
+    }
+
     #[test]
     fn header_layout_is_as_documented() {
         let b = to_bytes(&small_table(false), DataType::F32).unwrap();
         assert_eq!(&b[..8], b"PBRDFTAB");
-        assert_eq!(u32::from_le_bytes(b[8..12].try_into().unwrap()), 1);
+        assert_eq!(u32::from_le_bytes(b[8..12].try_into().unwrap()), 3);
         assert_eq!(u32::from_le_bytes(b[12..16].try_into().unwrap()), 1);
         let len = u64::from_le_bytes(b[16..24].try_into().unwrap()) as usize;
         assert_eq!(len, b.len() - HEADER_LEN);

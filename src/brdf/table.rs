@@ -28,7 +28,9 @@
 use super::BrdfError;
 use super::angles::{self, Vec3, dphi_prop_rad, mu_of_theta_deg};
 use super::grid::{PolarGrid, STENCIL, Stencil};
+use crate::physics::RefractiveIndex;
 use crate::physics::stokes::{Mueller, mul, rotation};
+use crate::solver::truncation::{CorrectionLayer, SingleScatterCorrection};
 use crate::solver::{self, Base};
 use crate::spec::{self, Spec};
 use serde::{Deserialize, Serialize};
@@ -104,6 +106,54 @@ pub struct WavelengthTable {
     pub specular: Option<Vec<Mueller>>,
     /// Solver wall time for this wavelength (ms).
     pub wall_time_ms: f64,
+    /// The exact-minus-truncated single-scattering BRDF of a delta-M
+    /// truncated solve (`solver::truncation`), evaluated in closed form at
+    /// every query direction (T3); `None` when no layer was truncated.
+    pub correction: Option<StoredCorrection>,
+}
+
+/// The single-scattering correction a table carries: the solver's
+/// [`SingleScatterCorrection`] with the Fresnel indices its mirror paths
+/// are rebuilt from when the table is read (the closure itself is not
+/// data).
+#[derive(Clone, Debug)]
+pub struct StoredCorrection {
+    /// The correction, ready to evaluate.
+    pub correction: SingleScatterCorrection,
+    /// Ambient and base indices of a Fresnel base under a finite stack.
+    pub mirror_indices: Option<(f64, RefractiveIndex)>,
+}
+
+impl PartialEq for StoredCorrection {
+    fn eq(&self, other: &Self) -> bool {
+        let (a, b) = (&self.correction, &other.correction);
+        a.layers == b.layers
+            && a.polarized == b.polarized
+            && a.mirror.as_ref().map(|m| m.1) == b.mirror.as_ref().map(|m| m.1)
+            && a.streams == b.streams
+            && self.mirror_indices == other.mirror_indices
+    }
+}
+
+impl StoredCorrection {
+    /// Rebuild from stored parts (`mirror` = scaled stack thickness and the
+    /// Fresnel indices).
+    pub fn from_parts(
+        layers: Vec<CorrectionLayer>,
+        polarized: bool,
+        streams: usize,
+        mirror: Option<(f64, f64, RefractiveIndex)>,
+    ) -> Self {
+        Self {
+            correction: SingleScatterCorrection {
+                layers,
+                polarized,
+                mirror: mirror.map(|(depth, n1, n2)| (spec::fresnel_mirror(n1, n2), depth)),
+                streams,
+            },
+            mirror_indices: mirror.map(|(_, n1, n2)| (n1, n2)),
+        }
+    }
 }
 
 /// The solver's error estimate (`solver::accuracy::ErrorEstimate`).
@@ -111,10 +161,12 @@ pub struct WavelengthTable {
 pub struct EstimateMeta {
     /// Estimated max |error of f11| relative to max f11.
     pub max_err_f11: f64,
-    /// Streams of the three solves used (`N/4`, `N/2`, `N`).
+    /// Streams of the three solves used (`N/2`, `3N/4`, `N`).
     pub streams: [usize; 3],
-    /// Observed contraction of successive differences.
-    pub contraction: f64,
+    /// Observed contraction `d(3N/4, N)/d(N/2, 3N/4)` (informational;
+    /// `null` when undefined).
+    #[serde(default)]
+    pub contraction: Option<f64>,
 }
 
 /// Numerical settings of the solver, as recorded in the metadata.
@@ -233,13 +285,12 @@ fn build_with_streams(
         let t0 = Instant::now();
         let progress = |x: f64| (options.on_progress)(k, total, x);
         let (refl, streams, error_estimate) = match spec::stream_policy(spec) {
-            spec::StreamPolicy::Fixed(_) => (
-                solver::reflection_observed(&problem, &grid.mu, &|done, bound| {
-                    progress(done as f64 / bound.max(1) as f64)
-                })?,
-                problem.settings.streams,
-                None,
-            ),
+            spec::StreamPolicy::Fixed(_) => {
+                let e = solver::accuracy::reflection_with_estimate_observed(
+                    &problem, &grid.mu, &progress,
+                )?;
+                (e.reflection, problem.settings.streams, e.estimate)
+            }
             spec::StreamPolicy::Tolerance(t) => {
                 let e = solver::accuracy::reflection_to_tolerance(
                     &problem,
@@ -248,14 +299,14 @@ fn build_with_streams(
                     options.max_streams,
                     &progress,
                 )?;
-                let est = EstimateMeta {
-                    max_err_f11: e.estimate.max_err_f11,
-                    streams: e.estimate.streams,
-                    contraction: e.estimate.contraction,
-                };
-                (e.reflection, est.streams[2], Some(est))
+                (e.reflection, e.estimate.streams[2], e.estimate)
             }
         };
+        let error_estimate = Some(EstimateMeta {
+            max_err_f11: error_estimate.max_err_f11,
+            streams: error_estimate.streams,
+            contraction: error_estimate.contraction,
+        });
         let ns = refl.ns;
         let n = grid.len();
         let orders = refl.rho.len();
@@ -283,6 +334,16 @@ fn build_with_streams(
             ),
             _ => None,
         };
+        let correction = match refl.correction {
+            Some(correction) => Some(StoredCorrection {
+                mirror_indices: match correction.mirror {
+                    Some(_) => spec::fresnel_indices(spec, wl)?,
+                    None => None,
+                },
+                correction,
+            }),
+            None => None,
+        };
         let block = WavelengthTable {
             wavelength_nm: wl,
             ns,
@@ -291,6 +352,7 @@ fn build_with_streams(
             f,
             specular,
             wall_time_ms: t0.elapsed().as_secs_f64() * 1e3,
+            correction,
         };
         out.push((block, streams, error_estimate));
     }
@@ -434,11 +496,37 @@ impl WavelengthTable {
         theta_o_deg: f64,
         dphi_prop: f64,
     ) -> Mueller {
-        fourier_synthesis(
+        let mut f = fourier_synthesis(
             &self.coefficients(grid, theta_o_deg, theta_i_deg),
             self.ns,
             dphi_prop,
-        )
+        );
+        self.complete(&mut f, theta_i_deg, theta_o_deg, dphi_prop);
+        f
+    }
+
+    /// Add the stored single-scattering correction (T3), if any, at the
+    /// exact directions (it carries the forward peak that no Fourier
+    /// series of the table's length could), then make the matrix
+    /// realizable (`solver::make_realizable`: the interpolation, like a
+    /// coarse solve, need not be).
+    pub fn complete(&self, f: &mut Mueller, theta_i_deg: f64, theta_o_deg: f64, dphi_prop: f64) {
+        if let Some(c) = &self.correction {
+            let d = c.correction.brdf(
+                mu_of_theta_deg(theta_o_deg),
+                mu_of_theta_deg(theta_i_deg),
+                dphi_prop,
+            );
+            let ns = self.ns;
+            for (row, drow) in f.iter_mut().zip(&d).take(ns) {
+                for (x, y) in row.iter_mut().zip(drow).take(ns) {
+                    *x += y;
+                }
+            }
+        }
+        if self.ns == 4 {
+            solver::make_realizable(f);
+        }
     }
 
     /// Interpolated specular matrix `e^{−2τ/μ_i} M_F(μ_i)` (conventions §6)
@@ -706,6 +794,55 @@ mod tests {
         }
     }
 
+    /// A delta-M truncated solve (Mie x ≈ 11, ~25 terms, at 4 streams,
+    /// which integrate 8): at the nodes the table's BRDF (T3) equals the
+    /// solver's (Fourier part plus the single-scattering correction), over
+    /// black and a Fresnel base (mirror paths), and the correction is a
+    /// large part of it at the grazing forward pair (so leaving it out, as
+    /// format version 1 did, fails this test).
+    #[test]
+    fn truncated_tables_carry_the_single_scattering_correction() {
+        for base in [
+            r#""black""#,
+            r#"{"fresnel": {"material": {"n": 0.14, "k": 4.1}}}"#,
+        ] {
+            let text = format!(
+                r#"{{"layers": [{{"optical_thickness": 0.5, "scatterer": {{"mie": {{
+                     "material": {{"n": 1.5, "k": 0.001}}, "radius_um": 1.0, "host_index": 1.0}}}}}}],
+                    "base": {base}, "wavelengths_nm": [550], "solver": {{"streams": 4}}}}"#
+            );
+            let spec = crate::spec::parse(&text).unwrap();
+            let grid = PolarGrid::graded(8).unwrap();
+            let t = Table::from_spec(&spec, grid.clone()).unwrap();
+            let wt = &t.wavelengths[0];
+            let stored = wt.correction.as_ref().expect("truncated solve");
+            assert_eq!(stored.mirror_indices.is_some(), base != r#""black""#);
+            let p = spec::problem(&spec, Some(550.0)).unwrap();
+            let r = solver::reflection(&p, &grid.mu).unwrap();
+            let (mut worst, mut scale, mut share) = (0.0f64, 0.0f64, 0.0f64);
+            for o in 0..grid.len() {
+                for i in 0..grid.len() {
+                    for k in 0..7 {
+                        let dphi = PI * k as f64 / 6.0;
+                        let a = wt.eval(&t.grid, grid.theta_deg[i], grid.theta_deg[o], dphi);
+                        let b = r.brdf(o, i, dphi);
+                        let c = stored.correction.brdf(grid.mu[o], grid.mu[i], dphi);
+                        for (x, y) in a.iter().flatten().zip(b.iter().flatten()) {
+                            worst = worst.max((x - y).abs());
+                        }
+                        scale = scale.max(b[0][0]);
+                        share = share.max(c[0][0] / b[0][0]);
+                    }
+                }
+            }
+            assert!(worst <= 1e-12 * scale, "{base}: {worst:e} of {scale:e}");
+            assert!(
+                share > 0.1,
+                "{base}: the correction is at most {share} of f11"
+            );
+        }
+    }
+
     /// Two blocks at 500 and 600 nm, the second twice the first: the BRDF at
     /// 575 nm is 1.75 times the first (linear in wavelength); outside the
     /// range and without a wavelength it is an error.
@@ -733,7 +870,8 @@ mod tests {
 
     /// A spec with `solver.tolerance` (and no `solver.streams`) is solved
     /// as `polbrdf solve` does it: the cheapest power-of-two streams meeting
-    /// the tolerance, recorded per wavelength with the estimate.
+    /// the tolerance, recorded per wavelength with the estimate; a spec
+    /// with fixed streams records its estimate too (from `N/2` and `3N/4`).
     #[test]
     fn tolerance_specs_record_streams_and_estimate() {
         let spec = crate::spec::parse(
@@ -750,7 +888,12 @@ mod tests {
         assert!(e.max_err_f11 <= 1e-3 || w.streams * 2 > crate::spec::MAX_STREAMS);
         let fixed = table(r#""black""#);
         assert_eq!(fixed.metadata.wavelengths[0].streams, 4);
-        assert!(fixed.metadata.wavelengths[0].error_estimate.is_none());
+        let e = fixed.metadata.wavelengths[0]
+            .error_estimate
+            .as_ref()
+            .expect("estimate");
+        assert_eq!(e.streams, [2, 3, 4]);
+        assert!(e.max_err_f11 > 0.0 && e.max_err_f11 < 1.0, "{e:?}");
     }
 
     /// The specular term is reported for mirror pairs only, and at normal

@@ -18,8 +18,16 @@ use crate::solver;
 use crate::spec::{self, Spec, canonical};
 use std::time::Instant;
 
-/// Media type of the stored bytes.
-pub const MEDIA_TYPE: &str = "application/vnd.polbrdf.table";
+/// Media type of the stored bytes, with the table format version
+/// (`brdf::format::VERSION`): a row stored in another version is stale and
+/// is solved again on its next request (`Jobs::result_bytes`).
+pub const MEDIA_TYPE: &str = "application/vnd.polbrdf.table; version=3";
+
+#[cfg(test)]
+#[test]
+fn media_type_names_the_format_version() {
+    assert!(MEDIA_TYPE.ends_with(&format!("; version={}", crate::brdf::format::VERSION)));
+}
 
 /// Precision of the stored coefficients (lossless).
 pub const DATA_TYPE: DataType = DataType::F64;

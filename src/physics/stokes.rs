@@ -187,10 +187,16 @@ pub fn coherency_eigenvalues(m: &Mueller) -> [f64; 4] {
     if m.iter().flatten().any(|x| !x.is_finite()) {
         return [f64::NAN; 4];
     }
-    let h = coherency_matrix(m);
+    // Divided to unit size first (1/s overflows for subnormal s): subnormal inputs (e.g. e^{−700} behind a
+    // thick absorber) would otherwise lose the eigensolver (NaN).
+    let s = max_abs(m);
+    if s == 0.0 {
+        return [0.0; 4];
+    }
+    let h = coherency_matrix(&m.map(|row| row.map(|x| x / s)));
     let mat = Mat::<C64>::from_fn(4, 4, |i, j| h[i][j]);
     match mat.self_adjoint_eigenvalues(Side::Lower) {
-        Ok(ev) => [ev[3], ev[2], ev[1], ev[0]],
+        Ok(ev) => [ev[3] * s, ev[2] * s, ev[1] * s, ev[0] * s],
         Err(_) => [f64::NAN; 4],
     }
 }
@@ -202,6 +208,109 @@ pub fn is_realizable(m: &Mueller, tol: f64) -> bool {
     ev.iter().all(|&l| l >= -tol * m[0][0])
 }
 
+/// The Mueller matrix of a coherency matrix, the inverse of
+/// [`coherency_matrix`]: `m_ij = tr(H (σ_i ⊗ σ_j*)†)` (the 16 products
+/// `σ_i ⊗ σ_j*` are orthogonal with norm² 4 and `H = ¼ Σ m_ij σ_i ⊗ σ_j*`).
+pub fn mueller_of_coherency(h: &[[C64; 4]; 4]) -> Mueller {
+    let mut m = [[0.0; 4]; 4];
+    for (i, mrow) in m.iter_mut().enumerate() {
+        for (j, mij) in mrow.iter_mut().enumerate() {
+            let (si, sj) = (&PAULI[i], &PAULI[j]);
+            let mut acc = Z;
+            for a in 0..2 {
+                for b in 0..2 {
+                    for c in 0..2 {
+                        for d in 0..2 {
+                            // B = σ_i ⊗ σ_j*, B_{2a+b, 2c+d} = σ_i[a][c] σ_j[b][d]*.
+                            let bel = si[a][c] * sj[b][d].conj();
+                            acc += h[2 * a + b][2 * c + d] * bel.conj();
+                        }
+                    }
+                }
+            }
+            *mij = acc.re;
+        }
+    }
+    m
+}
+
+/// Whether the Hermitian `h + shift·1` is positive definite (a Cholesky
+/// factorisation `LL†` succeeds with positive pivots): `λ_min(h) > −shift`.
+fn positive_definite_shifted(h: &[[C64; 4]; 4], shift: f64) -> bool {
+    let mut l = [[Z; 4]; 4];
+    for j in 0..4 {
+        let mut d = h[j][j].re + shift;
+        for lj in l[j].iter().take(j) {
+            d -= lj.norm_sqr();
+        }
+        if d.is_nan() || d <= 0.0 {
+            return false;
+        }
+        let djj = d.sqrt();
+        l[j][j] = C64::new(djj, 0.0);
+        for i in j + 1..4 {
+            let mut v = h[i][j];
+            let (li, lj) = (l[i], l[j]);
+            for (a, b) in li.iter().zip(&lj).take(j) {
+                v -= *a * b.conj();
+            }
+            l[i][j] = v / djj;
+        }
+    }
+    true
+}
+
+/// The nearest physically realizable Mueller matrix (Cloude 1986; "Cloude
+/// filtering", Gil & Ossikovski 2016 §6.7): negative eigenvalues of the
+/// coherency matrix are set to zero, `H → Σ max(λ_k, 0) u_k u_k†`, and the
+/// Mueller matrix rebuilt. This is the orthogonal projection onto the convex
+/// cone of realizable matrices in the Frobenius norm of `H` (`‖H‖² = ¼ Σ m_ij²`),
+/// so it never moves a result further from any realizable matrix, the
+/// exact answer included. `None` when `m` is realizable to within
+/// `rel_tol · m_11` already (checked by a Cholesky factorisation of
+/// `H + rel_tol m_11 1`, a few hundred flops; the eigendecomposition runs
+/// only for the rest), or not finite.
+pub fn realizable_projection(m: &Mueller, rel_tol: f64) -> Option<Mueller> {
+    if m.iter().flatten().any(|x| !x.is_finite()) {
+        return None;
+    }
+    // Work at unit size (subnormal entries would underflow in the squares
+    // of the factorisation and lose the eigensolver); scale back at the end.
+    let scale = max_abs(m);
+    if scale == 0.0 {
+        return None;
+    }
+    let unit = m.map(|row| row.map(|x| x / scale));
+    let h = coherency_matrix(&unit);
+    if positive_definite_shifted(&h, rel_tol * unit[0][0].max(0.0)) {
+        return None;
+    }
+    let mat = Mat::<C64>::from_fn(4, 4, |i, j| h[i][j]);
+    let evd = mat.self_adjoint_eigen(Side::Lower).ok()?;
+    let (u, lam) = (evd.U(), evd.S().column_vector());
+    let mut p = [[Z; 4]; 4];
+    for k in 0..4 {
+        let l = lam[k].re;
+        if l <= 0.0 {
+            continue;
+        }
+        for (a, prow) in p.iter_mut().enumerate() {
+            for (b, pab) in prow.iter_mut().enumerate() {
+                *pab += u[(a, k)] * u[(b, k)].conj() * l;
+            }
+        }
+    }
+    Some(scaled(&mueller_of_coherency(&p), scale))
+}
+
+fn max_abs(m: &Mueller) -> f64 {
+    m.iter().flatten().fold(0.0, |a: f64, x| a.max(x.abs()))
+}
+
+fn scaled(m: &Mueller, a: f64) -> Mueller {
+    m.map(|row| row.map(|x| x * a))
+}
+
 /// Stokes criterion (necessary, weaker than Cloude's): the minimum over
 /// `n_samples` fully polarized unit inputs `s = (1, q, u, v)`,
 /// `q² + u² + v² = 1` (a Fibonacci lattice on the Poincaré sphere), of
@@ -210,6 +319,13 @@ pub fn is_realizable(m: &Mueller, tol: f64) -> bool {
 /// `≥ 0` (up to sampling); by linearity checking fully polarized inputs is
 /// enough. `n_samples` is raised to at least 2.
 pub fn stokes_criterion_min(m: &Mueller, n_samples: usize) -> f64 {
+    // At unit scale: the squares of entries ~1e-162 (values behind a thick
+    // absorber) underflow and would give a spurious negative value.
+    let s = max_abs(m);
+    if !(s > 0.0 && s.is_finite()) {
+        return if s == 0.0 { 0.0 } else { f64::NAN };
+    }
+    let m = &m.map(|row| row.map(|x| x / s));
     let n = n_samples.max(2);
     let golden = std::f64::consts::PI * (3.0 - 5.0_f64.sqrt());
     let mut min = f64::INFINITY;
@@ -221,7 +337,7 @@ pub fn stokes_criterion_min(m: &Mueller, n_samples: usize) -> f64 {
         let d = out[0] - (out[1] * out[1] + out[2] * out[2] + out[3] * out[3]).sqrt();
         min = min.min(d);
     }
-    min
+    min * s
 }
 
 fn mul2(a: &Jones, b: &Jones) -> Jones {
@@ -248,6 +364,84 @@ mod tests {
 
     fn close(a: f64, b: f64, tol: f64) -> bool {
         (a - b).abs() <= tol
+    }
+
+    /// Subnormal matrices (values behind a thick absorber) are handled at
+    /// unit scale: finite eigenvalues, and the projection of a
+    /// non-realizable one is realizable.
+    #[test]
+    fn subnormal_matrices_keep_finite_eigenvalues_and_project() {
+        let bad: Mueller = [
+            [1.0, 0.3, 0.0, 0.0],
+            [1.05, 0.9, 0.1, 0.0],
+            [0.0, -0.1, 0.4, 0.2],
+            [0.0, 0.05, -0.2, 0.3],
+        ];
+        let tiny = bad.map(|r| r.map(|x| x * 1e-310));
+        let ev = coherency_eigenvalues(&tiny);
+        assert!(ev.iter().all(|x| x.is_finite()), "{ev:?}");
+        assert!(ev[3] < 0.0);
+        let p = realizable_projection(&tiny, 1e-12).expect("projected");
+        assert!(stokes_criterion_min(&p, 500) >= -1e-6 * p[0][0], "{p:?}");
+        let ev = coherency_eigenvalues(&p);
+        assert!(ev[3] >= -1e-9 * p[0][0], "{ev:?}");
+    }
+
+    /// `mueller_of_coherency` inverts `coherency_matrix` exactly.
+    #[test]
+    fn coherency_round_trip() {
+        let m: Mueller = [
+            [1.0, 0.2, -0.1, 0.05],
+            [0.3, 0.7, 0.11, -0.2],
+            [-0.05, 0.13, 0.6, 0.25],
+            [0.02, -0.3, 0.21, 0.5],
+        ];
+        assert!(max_diff(&mueller_of_coherency(&coherency_matrix(&m)), &m) < 1e-15);
+    }
+
+    /// The projection: realizable matrices are left alone; a matrix with a
+    /// negative coherency eigenvalue becomes realizable (smallest eigenvalue
+    /// ≥ −1e-15 m11), moves by no more than it must (not further than the
+    /// rescaled identity, a realizable matrix), and commutes with the
+    /// reciprocity map `M → Q Mᵀ Q`, `Q = diag(1, 1, −1, 1)` (so reciprocal
+    /// BRDFs stay reciprocal).
+    #[test]
+    fn projection_makes_realizable_and_commutes_with_reciprocity() {
+        let ok = jones_to_mueller(&[
+            [C64::new(0.8, 0.1), C64::new(0.1, -0.2)],
+            [C64::new(-0.05, 0.3), C64::new(0.6, 0.0)],
+        ]);
+        assert!(realizable_projection(&ok, 1e-12).is_none());
+        // Over-polarizing: the Stokes criterion fails for m12 > m11.
+        let bad: Mueller = [
+            [1.0, 0.3, 0.0, 0.0],
+            [1.05, 0.9, 0.1, 0.0],
+            [0.0, -0.1, 0.4, 0.2],
+            [0.0, 0.05, -0.2, 0.3],
+        ];
+        assert!(coherency_eigenvalues(&bad)[3] < -1e-3);
+        let p = realizable_projection(&bad, 1e-12).expect("projected");
+        let ev = coherency_eigenvalues(&p);
+        assert!(ev[3] >= -1e-15 * p[0][0], "{ev:?}");
+        assert!(stokes_criterion_min(&p, 2000) >= -1e-12 * p[0][0]);
+        let fro = |a: &Mueller, b: &Mueller| -> f64 {
+            a.iter()
+                .flatten()
+                .zip(b.iter().flatten())
+                .map(|(x, y)| (x - y).powi(2))
+                .sum::<f64>()
+                .sqrt()
+        };
+        let depol: Mueller = std::array::from_fn(|i| {
+            std::array::from_fn(|j| if i == 0 && j == 0 { bad[0][0] } else { 0.0 })
+        });
+        assert!(fro(&p, &bad) <= fro(&depol, &bad));
+        let q = |m: &Mueller| -> Mueller {
+            let s = [1.0, 1.0, -1.0, 1.0];
+            std::array::from_fn(|i| std::array::from_fn(|j| s[i] * m[j][i] * s[j]))
+        };
+        let a = realizable_projection(&q(&bad), 1e-12).unwrap();
+        assert!(max_diff(&a, &q(&p)) < 1e-14, "{a:?} vs {:?}", q(&p));
     }
 
     fn max_diff(a: &Mueller, b: &Mueller) -> f64 {

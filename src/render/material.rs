@@ -148,6 +148,9 @@ impl TableBrdf {
                 }
                 (cm, sm) = (cm * c1 - sm * s1, sm * c1 + cm * s1);
             }
+            // The single-scattering correction (T3) and realizability, as
+            // `WavelengthTable::eval` does.
+            wt.complete(&mut f, d.theta_i_deg, d.theta_o_deg, dphi);
             per_block[slot] = f;
         }
         // Step 3: channels are linear combinations of blocks (wavelength).

@@ -560,9 +560,10 @@ pub(crate) fn secondary(
         .iter()
         .filter(|l| l.thickness > 0.0 && l.omega_full > 0.0)
         .map(|l| {
-            let full = l
-                .full
-                .truncated(significant_terms(&l.full).saturating_sub(1));
+            // Never shorter than the truncated series (the kernels of both
+            // are tabulated to the same length).
+            let keep = significant_terms(&l.full).max(l.trunc.len());
+            let full = l.full.truncated(keep.saturating_sub(1));
             let trunc = if l.truncated() {
                 l.trunc.clone()
             } else {

@@ -52,38 +52,61 @@ use crate::physics::stokes::Mueller;
 use faer::Mat;
 
 /// One layer of the single-scattering correction: original and scaled
-/// optical properties, depth of its top in both stacks.
-#[derive(Clone, Debug)]
-struct CorrectionLayer {
+/// optical properties, depth of its top in both stacks. Plain data: BRDF
+/// tables store it (docs/table-format.md) and evaluate the correction at
+/// query time.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CorrectionLayer {
     /// `ω/(1 − ωf)`: the TMS albedo of the full phase matrix in the scaled
     /// stack (`ω` when the layer is not truncated).
-    omega: f64,
-    tau: f64,
-    tau_top: f64,
-    coef: GreekCoefficients,
-    omega_t: f64,
-    tau_t: f64,
-    tau_top_t: f64,
-    coef_t: GreekCoefficients,
-    /// The removed forward fraction per diagonal element `(f, f₂₃, f₂₃, f₄)`.
-    fx: [f64; 4],
+    pub omega: f64,
+    /// Scaled optical thickness `τ' = (1 − ωf) τ` (may be infinite).
+    pub tau: f64,
+    /// Scaled depth of the layer's top.
+    pub tau_top: f64,
+    /// The full phase-matrix expansion.
+    pub coef: GreekCoefficients,
+    /// Albedo of the truncated layer `ω'`.
+    pub omega_t: f64,
+    /// Thickness of the truncated layer (`τ'`).
+    pub tau_t: f64,
+    /// Depth of its top in the truncated stack.
+    pub tau_top_t: f64,
+    /// The truncated expansion.
+    pub coef_t: GreekCoefficients,
+    /// The removed forward fraction per diagonal element `(f, f₂₃, f₂₃, f₄)`
+    /// (used by the secondary correction at solve time only; zero in
+    /// stored tables).
+    pub fx: [f64; 4],
+}
+
+impl CorrectionLayer {
+    /// Whether the layer was truncated (otherwise its two single-scattering
+    /// terms are equal and cancel).
+    pub fn is_truncated(&self) -> bool {
+        !(self.coef_t == self.coef && self.omega == self.omega_t)
+    }
 }
 
 /// The exact-minus-truncated single-scattering BRDF of a stack.
 #[derive(Clone)]
 pub struct SingleScatterCorrection {
-    layers: Vec<CorrectionLayer>,
-    polarized: bool,
+    /// Every layer of the stack, top first.
+    pub layers: Vec<CorrectionLayer>,
+    /// Full Mueller matrices (`false`: f11 only).
+    pub polarized: bool,
     /// A mirror base under a finite stack: its reflection matrix and the
     /// scaled thickness of the stack (single-scattering paths that reflect
     /// at the base once or twice are corrected too).
-    mirror: Option<(MirrorFn, f64)>,
-    /// Streams of the solve (quadrature of the truncated solution).
-    streams: usize,
+    pub mirror: Option<(MirrorFn, f64)>,
+    /// Streams of the solve (quadrature of the truncated solution; the
+    /// secondary correction subtracts what it integrates). Tables store it;
+    /// 0 means unknown, and then there is no secondary term to compute.
+    pub streams: usize,
 }
 
 /// Reflection Mueller matrix of a mirror base as a function of `μ`.
-type MirrorFn = std::sync::Arc<dyn Fn(f64) -> Mueller + Send + Sync>;
+pub type MirrorFn = std::sync::Arc<dyn Fn(f64) -> Mueller + Send + Sync>;
 
 impl std::fmt::Debug for SingleScatterCorrection {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -354,6 +377,9 @@ impl SingleScatterCorrection {
     /// it (empty when no layer is truncated).
     /// `max_order`: the highest Fourier order wanted (`None`: all).
     pub fn secondary(&self, mu: &[f64], max_order: Option<usize>) -> Vec<Mat<f64>> {
+        if self.streams == 0 {
+            return Vec::new();
+        }
         secondary(
             &self.scaled_layers(),
             mu,
@@ -386,8 +412,8 @@ impl SingleScatterCorrection {
         let mut out = [[0.0; 4]; 4];
         let mirror = self.mirror.as_ref();
         for l in &self.layers {
-            if l.coef_t == l.coef && l.omega == l.omega_t {
-                continue; // not truncated: the two terms are equal
+            if !l.is_truncated() {
+                continue; // the two terms are equal
             }
             let full = layer_single_scattering(
                 &l.coef,

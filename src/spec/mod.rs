@@ -628,6 +628,35 @@ pub fn max_size_parameter(spec: &Spec) -> f64 {
     x_max
 }
 
+/// The ambient (real) and base (complex) refractive indices of a Fresnel
+/// base at one wavelength, validated; `None` for other bases. The ambient
+/// index defaults to the host of the last layer's Mie particles, else 1.
+pub fn fresnel_indices(
+    spec: &Spec,
+    wavelength_nm: Option<f64>,
+) -> Result<Option<(f64, RefractiveIndex)>, SpecError> {
+    let BaseSpec::Fresnel {
+        material,
+        ambient_index,
+    } = &spec.base
+    else {
+        return Ok(None);
+    };
+    let n2 = resolve_index("base.fresnel.material", material, wavelength_nm)?;
+    let n1 = ambient_index.unwrap_or_else(|| match spec.layers.last().map(|l| &l.scatterer) {
+        Some(ScattererSpec::Mie(m)) => m.host_index,
+        _ => 1.0,
+    });
+    fresnel::mueller(n1, n2, 0.5).map_err(|e| SpecError::new("base.fresnel", e.to_string()))?;
+    Ok(Some((n1, n2)))
+}
+
+/// The Fresnel reflection Mueller matrix of a mirror base as a function of
+/// `μ` (indices validated by [`fresnel_indices`], so it cannot fail).
+pub fn fresnel_mirror(n1: f64, n2: RefractiveIndex) -> solver::truncation::MirrorFn {
+    Arc::new(move |mu: f64| fresnel::mueller(n1, n2, mu.clamp(0.0, 1.0)).unwrap_or([[0.0; 4]; 4]))
+}
+
 /// The solver problem at one wavelength (`None` for a wavelength-free spec).
 pub fn problem(spec: &Spec, wavelength_nm: Option<f64>) -> Result<Problem, SpecError> {
     let mut layers = Vec::with_capacity(spec.layers.len());
@@ -647,23 +676,11 @@ pub fn problem(spec: &Spec, wavelength_nm: Option<f64>) -> Result<Problem, SpecE
     let base = match &spec.base {
         BaseSpec::Black => Base::Black,
         BaseSpec::Lambertian { albedo } => Base::Lambertian { albedo: *albedo },
-        BaseSpec::Fresnel {
-            material,
-            ambient_index,
-        } => {
-            let n2 = resolve_index("base.fresnel.material", material, wavelength_nm)?;
-            let n1 =
-                ambient_index.unwrap_or_else(|| match spec.layers.last().map(|l| &l.scatterer) {
-                    Some(ScattererSpec::Mie(m)) => m.host_index,
-                    _ => 1.0,
-                });
-            // Validate once here so the closure below cannot fail.
-            fresnel::mueller(n1, n2, 0.5)
-                .map_err(|e| SpecError::new("base.fresnel", e.to_string()))?;
+        BaseSpec::Fresnel { .. } => {
+            let (n1, n2) =
+                fresnel_indices(spec, wavelength_nm)?.expect("a Fresnel base has indices");
             Base::Mirror {
-                mueller: Arc::new(move |mu: f64| {
-                    fresnel::mueller(n1, n2, mu.clamp(0.0, 1.0)).unwrap_or([[0.0; 4]; 4])
-                }),
+                mueller: fresnel_mirror(n1, n2),
             }
         }
     };

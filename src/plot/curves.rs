@@ -88,10 +88,7 @@ pub fn theta_deg(mu: f64) -> f64 {
 
 /// Optical thickness as a plain number (`inf` for a semi-infinite layer).
 pub fn tau_value(t: Thickness) -> f64 {
-    match t {
-        Thickness::Finite(x) => x,
-        Thickness::Infinite => f64::INFINITY,
-    }
+    t.value()
 }
 
 /// The problem with the **top** layer's optical thickness replaced by `tau`

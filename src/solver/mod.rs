@@ -37,6 +37,16 @@ pub enum Thickness {
     Infinite,
 }
 
+impl Thickness {
+    /// The optical thickness as a number (`+inf` for a semi-infinite layer).
+    pub fn value(self) -> f64 {
+        match self {
+            Thickness::Finite(t) => t,
+            Thickness::Infinite => f64::INFINITY,
+        }
+    }
+}
+
 /// One homogeneous layer: thickness, single-scattering albedo and the Greek
 /// coefficients of its scattering matrix (conventions §4).
 #[derive(Clone, Debug)]
@@ -302,6 +312,19 @@ struct Grid {
     mu_q: Vec<f64>,
     w_q: Vec<f64>,
     mu_u: Vec<f64>,
+}
+
+impl Grid {
+    /// The double-Gauss streams of `settings` and the user cosines `mu_u`.
+    fn new(settings: &Settings, mu_u: &[f64]) -> Self {
+        let (mu_q, w_q) = double_gauss(settings.streams);
+        Self {
+            ns: if settings.polarized { 4 } else { 1 },
+            mu_q,
+            w_q,
+            mu_u: mu_u.to_vec(),
+        }
+    }
 }
 
 /// Phase kernel of one layer for order `m`.
@@ -640,6 +663,46 @@ fn validate(problem: &Problem, mu_user: &[f64]) -> Result<(), SolverError> {
     Ok(())
 }
 
+/// The delta-M truncated problem when the settings ask for it.
+fn truncate(problem: &Problem) -> Result<Option<truncation::Truncated>, SolverError> {
+    if problem.settings.delta_m {
+        truncation::delta_m(problem).map(Some)
+    } else {
+        Ok(None)
+    }
+}
+
+/// `(semi_infinite, full)`: whether the bottom layer is semi-infinite, and
+/// whether the adding needs every block (a mirror base: light reflected up
+/// by the mirror scatters in the stack from below; under a semi-infinite
+/// layer the base is irrelevant).
+fn base_coupling(problem: &Problem) -> (bool, bool) {
+    let semi_infinite = matches!(
+        problem.layers.last().map(|l| l.thickness),
+        Some(Thickness::Infinite)
+    );
+    let full = matches!(problem.base, Base::Mirror { .. }) && !semi_infinite;
+    (semi_infinite, full)
+}
+
+/// The operators of the whole stack (base excluded) for Fourier order `m`,
+/// layers of thickness 0 skipped, vacuum for an empty stack.
+fn stack_ops(problem: &Problem, grid: &Grid, m: usize, full: bool) -> Ops {
+    let mut stack: Option<Ops> = None;
+    for layer in &problem.layers {
+        if matches!(layer.thickness, Thickness::Finite(t) if t <= 0.0) {
+            continue;
+        }
+        let ops = layer_ops(grid, layer, m, &problem.settings, full);
+        stack = Some(match stack {
+            None => ops,
+            Some(top) => add(&top, &ops, full),
+        });
+    }
+    let ns = grid.ns;
+    stack.unwrap_or_else(|| Ops::vacuum(grid.mu_q.len() * ns, grid.mu_u.len() * ns, ns))
+}
+
 /// Progress of one solve: called on the solving thread after each batch of
 /// Fourier orders with `(orders done, upper bound on the orders)`. The bound
 /// is the expansion length; the Fourier series usually converges (and the
@@ -662,45 +725,15 @@ pub fn reflection_observed(
 ) -> Result<ReflectionFourier, SolverError> {
     validate(problem, mu_user)?;
     let original = problem;
-    let truncated = if problem.settings.delta_m {
-        Some(truncation::delta_m(problem)?)
-    } else {
-        None
-    };
+    let truncated = truncate(problem)?;
     let problem = truncated.as_ref().map_or(problem, |t| &t.problem);
     let s = &problem.settings;
     let ns = if s.polarized { 4 } else { 1 };
-    let (mu_q, w_q) = double_gauss(s.streams);
-    let grid = Grid {
-        ns,
-        mu_q,
-        w_q,
-        mu_u: mu_user.to_vec(),
-    };
+    let grid = Grid::new(s, mu_user);
     let orders = order_count(problem);
-    let semi_infinite = matches!(
-        problem.layers.last().map(|l| l.thickness),
-        Some(Thickness::Infinite)
-    );
-    // The mirror base needs every block (light reflected up by the mirror
-    // scatters in the stack from below); under a semi-infinite layer the base
-    // is irrelevant.
-    let full = matches!(problem.base, Base::Mirror { .. }) && !semi_infinite;
+    let (semi_infinite, full) = base_coupling(problem);
     let one_order = |m: usize| -> Mat<f64> {
-        let mut stack: Option<Ops> = None;
-        for layer in &problem.layers {
-            if matches!(layer.thickness, Thickness::Finite(t) if t <= 0.0) {
-                continue;
-            }
-            let ops = layer_ops(&grid, layer, m, s, full);
-            stack = Some(match stack {
-                None => ops,
-                Some(top) => add(&top, &ops, full),
-            });
-        }
-        let n = grid.mu_q.len() * ns;
-        let nu = grid.mu_u.len() * ns;
-        let stack = stack.unwrap_or_else(|| Ops::vacuum(n, nu, ns));
+        let stack = stack_ops(problem, &grid, m, full);
         if semi_infinite {
             return stack.ruu;
         }
@@ -762,14 +795,7 @@ pub fn reflection_observed(
         on_orders(rho.len(), orders);
     }
     on_orders(orders, orders);
-    let tau_total: f64 = original
-        .layers
-        .iter()
-        .map(|l| match l.thickness {
-            Thickness::Finite(t) => t,
-            Thickness::Infinite => f64::INFINITY,
-        })
-        .sum();
+    let tau_total: f64 = original.layers.iter().map(|l| l.thickness.value()).sum();
     // The secondary-scattering correction of truncated layers is a Fourier
     // series at the user cosines: added to the solve's coefficients (all
     // orders of the full series), so that tables carry it too.
@@ -833,48 +859,14 @@ pub struct StreamFluxes {
 /// and albedo; the truncated forward peak travels with the direct beam).
 pub fn stream_fluxes(problem: &Problem, mu0: &[f64]) -> Result<StreamFluxes, SolverError> {
     validate(problem, mu0)?;
-    let truncated = if problem.settings.delta_m {
-        Some(truncation::delta_m(problem)?)
-    } else {
-        None
-    };
+    let truncated = truncate(problem)?;
     let problem = truncated.as_ref().map_or(problem, |t| &t.problem);
     let s = &problem.settings;
     let ns = if s.polarized { 4 } else { 1 };
-    let (mu_q, w_q) = double_gauss(s.streams);
-    let grid = Grid {
-        ns,
-        mu_q,
-        w_q,
-        mu_u: mu0.to_vec(),
-    };
-    let semi_infinite = matches!(
-        problem.layers.last().map(|l| l.thickness),
-        Some(Thickness::Infinite)
-    );
-    let full = matches!(problem.base, Base::Mirror { .. }) && !semi_infinite;
-    let mut stack: Option<Ops> = None;
-    for layer in &problem.layers {
-        if matches!(layer.thickness, Thickness::Finite(t) if t <= 0.0) {
-            continue;
-        }
-        let ops = layer_ops(&grid, layer, 0, s, full);
-        stack = Some(match stack {
-            None => ops,
-            Some(top) => add(&top, &ops, full),
-        });
-    }
-    let n = grid.mu_q.len() * ns;
-    let nu = grid.mu_u.len() * ns;
-    let stack = stack.unwrap_or_else(|| Ops::vacuum(n, nu, ns));
-    let tau: f64 = problem
-        .layers
-        .iter()
-        .map(|l| match l.thickness {
-            Thickness::Finite(t) => t,
-            Thickness::Infinite => f64::INFINITY,
-        })
-        .sum();
+    let grid = Grid::new(s, mu0);
+    let (semi_infinite, full) = base_coupling(problem);
+    let stack = stack_ops(problem, &grid, 0, full);
+    let tau: f64 = problem.layers.iter().map(|l| l.thickness.value()).sum();
     // Σ_i w_i μ_i X[(i, I), (v, I)] / μ_v for each beam v.
     let flux = |x: &Mat<f64>| -> Vec<f64> {
         (0..mu0.len())
@@ -1028,13 +1020,7 @@ pub fn internal_field(
     }
     let s = &problem.settings;
     let ns = if s.polarized { 4 } else { 1 };
-    let (mu_q, w_q) = double_gauss(s.streams);
-    let grid = Grid {
-        ns,
-        mu_q,
-        w_q,
-        mu_u: mu_user.to_vec(),
-    };
+    let grid = Grid::new(s, mu_user);
     let orders = order_count(problem);
     let per_order: Vec<Vec<(Mat<f64>, Mat<f64>)>> = (0..orders)
         .into_par_iter()
@@ -1156,6 +1142,30 @@ fn interface_field(a: &Ops, b: &Ops) -> (Mat<f64>, Mat<f64>) {
 #[cfg(test)]
 mod symmetry_tests {
     use super::*;
+
+    /// `(max |f(u, v, Δφ) − Δ f(v, u, −Δφ)ᵀ Δ|, max |f|)` over the user
+    /// cosines of `r` and four azimuths: the defect of polarized
+    /// reciprocity (conventions §5) and its scale.
+    pub(crate) fn reciprocity_defect(r: &ReflectionFourier) -> (f64, f64) {
+        let d = [1.0, 1.0, -1.0, 1.0];
+        let n = r.mu.len();
+        let (mut worst, mut scale): (f64, f64) = (0.0, 0.0);
+        for iu in 0..n {
+            for iv in 0..n {
+                for dphi in [0.0, 0.7, 2.0, 3.5] {
+                    let a = r.brdf(iu, iv, dphi);
+                    let b = r.brdf(iv, iu, -dphi);
+                    for i in 0..4 {
+                        for j in 0..4 {
+                            scale = scale.max(a[i][j].abs());
+                            worst = worst.max((a[i][j] - d[i] * b[j][i] * d[j]).abs());
+                        }
+                    }
+                }
+            }
+        }
+        (worst, scale)
+    }
 
     fn gs_layer(tau: f64) -> (Grid, Layer) {
         let coef = phase::tests_support::garcia_siewert();
@@ -1345,23 +1355,7 @@ mod law_tests {
             // the law with a thin start layer.
             p.settings.start_factor = 1e-3;
             let r = reflection(&p, &mu).unwrap();
-            let d = [1.0, 1.0, -1.0, 1.0];
-            let mut worst: f64 = 0.0;
-            let mut scale: f64 = 0.0;
-            for iu in 0..mu.len() {
-                for iv in 0..mu.len() {
-                    for dphi in [0.0, 0.7, 2.0, 3.5] {
-                        let a = r.brdf(iu, iv, dphi);
-                        let b = r.brdf(iv, iu, -dphi);
-                        for i in 0..4 {
-                            for j in 0..4 {
-                                scale = scale.max(a[i][j].abs());
-                                worst = worst.max((a[i][j] - d[i] * b[j][i] * d[j]).abs());
-                            }
-                        }
-                    }
-                }
-            }
+            let (worst, scale) = super::symmetry_tests::reciprocity_defect(&r);
             assert!(
                 worst < 1e-8 * scale,
                 "{label}: reciprocity violated by {worst:e} (scale {scale:e})"

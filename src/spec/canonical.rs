@@ -7,7 +7,9 @@
 //! 1. defaults are filled in (`base`, `solver.polarized`, `solver.streams`
 //!    unless a `tolerance` chooses it, `host_index`, `depolarization`, the
 //!    Fresnel `ambient_index`; a `tolerance` next to explicit `streams` is
-//!    ignored by the solver and dropped), built-in material names
+//!    ignored by the solver and dropped; `solver.secondary_scattering` is
+//!    the exception, written only when `false`, so that specs older than
+//!    the field keep their bytes), built-in material names
 //!    are replaced by their canonical name (`"titania"` → `"TiO2"`), trailing
 //!    zeros of expansion series are dropped (missing entries are 0) and `-0`
 //!    is written `0`;
@@ -31,7 +33,7 @@ use sha2::{Digest, Sha256};
 pub const SCHEMA_VERSION: &str = "1";
 
 /// Version of the solver's results mixed into every id.
-pub const SOLVER_VERSION: &str = "1";
+pub const SOLVER_VERSION: &str = "2";
 
 /// The spec with the defaults of its own fields filled in and equivalent
 /// spellings unified (step 1 of the module documentation, except the solver
@@ -295,5 +297,29 @@ mod tests {
         .unwrap();
         assert_ne!(id(&a).1, id(&b).1);
         assert!(is_id(&id(&a).1));
+    }
+
+    /// `solver.secondary_scattering`: the default `true` is the absent
+    /// field (ids of earlier specs are unchanged); `false` is another
+    /// computation, written out, and reaches the solver's settings.
+    #[test]
+    fn secondary_scattering_default_is_implicit() {
+        let layers = r#""wavelengths_nm":[550],"layers":[{"optical_thickness":1,"scatterer":{"mie":{"material":{"n":1.5,"k":0.001},"radius_um":3.0}}}]"#;
+        let absent = parse(&format!("{{{layers}}}")).unwrap();
+        let on = parse(&format!(
+            r#"{{{layers},"solver":{{"secondary_scattering":true}}}}"#
+        ))
+        .unwrap();
+        let off = parse(&format!(
+            r#"{{{layers},"solver":{{"secondary_scattering":false}}}}"#
+        ))
+        .unwrap();
+        assert_eq!(id(&absent), id(&on));
+        assert!(!id(&absent).0.contains("secondary_scattering"));
+        assert!(id(&off).0.contains(r#""secondary_scattering":false"#));
+        assert_ne!(id(&absent).1, id(&off).1);
+        let settings = |s: &Spec| crate::spec::problem(s, Some(550.0)).unwrap().settings;
+        assert!(settings(&on).secondary_scattering);
+        assert!(!settings(&off).secondary_scattering);
     }
 }

@@ -211,12 +211,23 @@ pub struct SolverSpec {
     /// Vector (true) or scalar (false) radiative transfer.
     #[serde(default = "yes")]
     pub polarized: bool,
+    /// Add the exact double scattering through a delta-M truncated forward
+    /// peak at user angles (`solver::secondary`; docs/solver.md). Only
+    /// layers whose series the streams cannot hold are affected; `false`
+    /// saves its cost (seconds for Mie x ≈ 100 on a 64-node table) where
+    /// the grazing forward directions do not matter. Written in the
+    /// canonical form only when `false`.
+    #[serde(default = "yes", skip_serializing_if = "is_true")]
+    pub secondary_scattering: bool,
 }
 
 /// Streams when neither `streams` nor `tolerance` is given.
 pub const DEFAULT_STREAMS: usize = 16;
 fn yes() -> bool {
     true
+}
+fn is_true(x: &bool) -> bool {
+    *x
 }
 
 impl Default for SolverSpec {
@@ -225,6 +236,7 @@ impl Default for SolverSpec {
             streams: None,
             polarized: true,
             tolerance: None,
+            secondary_scattering: true,
         }
     }
 }
@@ -690,6 +702,7 @@ pub fn problem(spec: &Spec, wavelength_nm: Option<f64>) -> Result<Problem, SpecE
         settings: Settings {
             streams: spec.solver.streams.unwrap_or(DEFAULT_STREAMS),
             polarized: spec.solver.polarized,
+            secondary_scattering: spec.solver.secondary_scattering,
             ..Settings::default()
         },
     })

@@ -128,6 +128,22 @@ pub struct Truncated {
     pub correction: Option<SingleScatterCorrection>,
 }
 
+/// Whether [`delta_m`] at `n` streams truncates some layer (a
+/// forward-peaked series longer than `2n` terms), so that the TMS and
+/// secondary corrections act.
+pub fn truncates(problem: &Problem, n: usize) -> bool {
+    problem.settings.delta_m
+        && problem
+            .layers
+            .iter()
+            .any(|l| is_truncated_at(&l.coef, 2 * n))
+}
+
+/// The criterion of [`delta_m`]: more than `keep` terms and forward-peaked.
+fn is_truncated_at(c: &GreekCoefficients, keep: usize) -> bool {
+    c.beta.len() > keep && c.beta.get(1).is_some_and(|&b| b > 0.0)
+}
+
 /// Delta-M truncate every layer whose series is longer than `2N` terms.
 pub fn delta_m(problem: &Problem) -> Result<Truncated, SolverError> {
     let n = problem.settings.streams;
@@ -142,8 +158,7 @@ pub fn delta_m(problem: &Problem) -> Result<Truncated, SolverError> {
         // Only forward peaks are truncated: a series that does not fit the
         // quadrature but is not forward-peaked (β_1 ≤ 0) is kept whole; its
         // truncation would leave negative lobes in the phase function.
-        let forward = c.beta.get(1).is_some_and(|&b| b > 0.0);
-        if c.beta.len() <= keep || !forward {
+        if !is_truncated_at(c, keep) {
             // Not truncated: the TMS term and the scaled single scattering
             // are the same numbers (both in the scaled stack) and cancel.
             corr.push(CorrectionLayer {

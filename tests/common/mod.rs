@@ -93,12 +93,37 @@ pub fn ok(args: &[&str]) -> Value {
     serde_json::from_str(&out).expect("JSON on stdout")
 }
 
-/// A fresh scratch directory `polbrdf-<name>-<pid>-<k>` under the system
-/// temporary directory.
+/// A fresh scratch directory `polbrdf-tests/<name>-<pid>-<k>` under the
+/// system temporary directory. Paths into it outlive any guard the tests
+/// could hold, so instead the first call of each test process removes the
+/// directories of test processes that have exited (where `/proc` tells).
 pub fn scratch_dir(name: &str) -> std::path::PathBuf {
     static COUNTER: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+    static PRUNED: std::sync::Once = std::sync::Once::new();
+    let root = std::env::temp_dir().join("polbrdf-tests");
+    PRUNED.call_once(|| prune_exited(&root));
     let k = COUNTER.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
-    let d = std::env::temp_dir().join(format!("polbrdf-{name}-{}-{k}", std::process::id()));
+    let d = root.join(format!("{name}-{}-{k}", std::process::id()));
     std::fs::create_dir_all(&d).unwrap();
     d
+}
+
+/// Remove `<name>-<pid>-<k>` directories under `root` whose process is gone.
+fn prune_exited(root: &std::path::Path) {
+    if !std::path::Path::new("/proc/self").exists() {
+        return;
+    }
+    let Ok(entries) = std::fs::read_dir(root) else {
+        return;
+    };
+    for e in entries.flatten() {
+        let name = e.file_name().to_string_lossy().into_owned();
+        let pid = name.rsplit('-').nth(1).and_then(|p| p.parse::<u32>().ok());
+        if let Some(pid) = pid
+            && pid != std::process::id()
+            && !std::path::Path::new(&format!("/proc/{pid}")).exists()
+        {
+            let _ = std::fs::remove_dir_all(e.path());
+        }
+    }
 }

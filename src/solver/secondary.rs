@@ -83,6 +83,7 @@
 
 use super::layer::mm;
 use super::phase::Gsf;
+use super::truncation::segment;
 use crate::physics::expansion::GreekCoefficients;
 use crate::physics::quadrature::{double_gauss, gauss_legendre_on};
 use faer::Mat;
@@ -159,27 +160,6 @@ fn divided_difference(x: f64, y: f64, t: f64) -> f64 {
     }
     let s = 0.5 * (x + y);
     moment(1, s, t) + d * d / 24.0 * moment(3, s, t)
-}
-
-/// `∫_A^{A+T} e^{−(α + c t)} dt` without overflow for either sign of `c`
-/// (`T` may be infinite when `c > 0`).
-fn segment(alpha: f64, c: f64, a: f64, t: f64) -> f64 {
-    if t <= 0.0 {
-        return 0.0;
-    }
-    if (c * t).abs() < 1e-12 {
-        return (-(alpha + c * a)).exp() * t;
-    }
-    if c > 0.0 {
-        let through = if t.is_finite() {
-            -(-c * t).exp_m1()
-        } else {
-            1.0
-        };
-        (-(alpha + c * a)).exp() * through / c
-    } else {
-        (-(alpha + c * (a + t))).exp() * -(c * t).exp_m1() / -c
-    }
 }
 
 /// Double-scattering geometry `G_{jk}` (module docs): beam down at

@@ -267,7 +267,7 @@ pub fn delta_m(problem: &Problem) -> Result<Truncated, SolverError> {
 
 /// `∫_a^{a+τ} exp(−(α + c t)) dt`, without overflow for either sign of `c`
 /// (`τ` may be infinite when `c > 0`).
-fn segment(alpha: f64, c: f64, a: f64, tau: f64) -> f64 {
+pub(crate) fn segment(alpha: f64, c: f64, a: f64, tau: f64) -> f64 {
     if tau <= 0.0 {
         return 0.0;
     }

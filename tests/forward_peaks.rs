@@ -6,6 +6,7 @@
 //! probe grid of `polbrdf convergence` (11 polar angles at the midpoints of
 //! 0–90°, incident and outgoing, × 13 azimuths).
 
+mod common;
 use polbrdf::solver::{self, Problem, ReflectionFourier};
 
 fn mie_problem(radius_um: f64) -> Problem {
@@ -16,16 +17,6 @@ fn mie_problem(radius_um: f64) -> Problem {
     let spec = polbrdf::spec::parse(&spec).unwrap();
     let wl = polbrdf::spec::wavelengths(&spec)[0];
     polbrdf::spec::problem(&spec, wl).unwrap()
-}
-
-fn probe() -> (Vec<f64>, Vec<f64>) {
-    let mu = (0..11)
-        .map(|k| (90.0 * (k as f64 + 0.5) / 11.0f64).to_radians().cos())
-        .collect();
-    let dphi = (0..13)
-        .map(|k| std::f64::consts::PI * k as f64 / 12.0)
-        .collect();
-    (mu, dphi)
 }
 
 fn solve(p: &Problem, streams: usize, mu: &[f64]) -> ReflectionFourier {
@@ -74,7 +65,7 @@ fn mie_x30_is_percent_level_at_24_streams() {
     let p = mie_problem(2.626);
     let terms = p.layers[0].coef.beta.len();
     assert!(terms > 48 && terms <= 96, "{terms} terms");
-    let (mu, dphi) = probe();
+    let (mu, dphi) = common::probe_grid();
     let reference = solve(&p, 48, &mu);
     assert!(
         reference.correction.is_none(),
@@ -99,7 +90,7 @@ fn mie_x30_is_percent_level_at_24_streams() {
 fn mie_x100_is_percent_level_at_32_streams() {
     let p = mie_problem(8.754);
     let terms = p.layers[0].coef.beta.len();
-    let (mu, dphi) = probe();
+    let (mu, dphi) = common::probe_grid();
     let reference = solve(&p, terms.div_ceil(2), &mu);
     assert!(
         reference.correction.is_none(),

@@ -5,19 +5,9 @@
 //! estimate it reports is within a factor 3 of its true error where the
 //! convergence is regular (docs/accuracy.md says where it is not).
 
+mod common;
 use polbrdf::solver::{self, ReflectionFourier, accuracy};
 use polbrdf::spec;
-
-/// The probe of docs/accuracy.md: 11 polar midpoints, 13 azimuths.
-fn probe_grid() -> (Vec<f64>, Vec<f64>) {
-    let mu = (0..11)
-        .map(|k| (90.0 * (k as f64 + 0.5) / 11.0).to_radians().cos())
-        .collect();
-    let dphi = (0..13)
-        .map(|k| std::f64::consts::PI * k as f64 / 12.0)
-        .collect();
-    (mu, dphi)
-}
 
 fn f11(r: &ReflectionFourier, dphi: &[f64]) -> Vec<f64> {
     let n = r.mu.len();
@@ -53,7 +43,7 @@ fn true_error(got: &[f64], reference: &[f64]) -> f64 {
 
 #[test]
 fn requested_tolerances_are_met() {
-    let (mu, dphi) = probe_grid();
+    let (mu, dphi) = common::probe_grid();
     let mut report = Vec::new();
     for name in ["TiO2_0.1_silver", "TiO2_1.0_black", "iron_oxide_0.1_black"] {
         let p = problem(name);
@@ -79,7 +69,7 @@ fn requested_tolerances_are_met() {
 /// true error.
 #[test]
 fn estimates_at_16_streams_are_within_a_factor_3() {
-    let (mu, dphi) = probe_grid();
+    let (mu, dphi) = common::probe_grid();
     for name in [
         "TiO2_1.0_black",
         "iron_oxide_10.0_lambertian",

@@ -161,7 +161,8 @@ impl StoredCorrection {
 pub struct EstimateMeta {
     /// Estimated max |error of f11| relative to max f11.
     pub max_err_f11: f64,
-    /// Streams of the three solves used (`N/2`, `3N/4`, `N`).
+    /// Streams of the solves used (`N/2`, `3N/4`, `N`; `N/2`, `N/2`, `N`
+    /// for a truncation-dominated answer, `solver::accuracy`).
     pub streams: [usize; 3],
     /// Observed contraction `d(3N/4, N)/d(N/2, 3N/4)` (informational;
     /// `null` when undefined).

@@ -37,7 +37,9 @@
 //! 0.55×). The strict property sweep found another: a conservative layer
 //! of τ = 0.0077 over a white base at 12 streams (r = 0.54) has a plane
 //! albedo of 1 + 7.5e-6, which (A1) did not cover and (A2) does
-//! (`tests/properties.rs`, `slowly_contracting_levels_state_enough_error`). It is capped at the last change `d(3N/4, N)`: a ratio near 1
+//! (`tests/properties.rs`, `slowly_contracting_levels_state_enough_error`).
+//!
+//! The second term is capped at the last change `d(3N/4, N)`: a ratio near 1
 //! continued geometrically explodes (`1/(1 − r)`), while the error of
 //! levels that barely contract is of the size of the last change (at 4
 //! streams, with levels 2 and 3: r = 0.82–1.0 in five seed cases, true

@@ -382,7 +382,8 @@ fn significant_terms(c: &GreekCoefficients) -> usize {
 struct Nodes {
     x: Vec<f64>,
     k: usize,
-    /// Per pair (index into the pair list): `wq[(u nu + v) 2k + q]`.
+    /// Per pair (index into the pair list): `wq[(u nu + v) 2k + q]`, for
+    /// `v ≥ u` (the half the contraction uses; zero below).
     weights: Vec<Vec<f64>>,
 }
 
@@ -400,8 +401,9 @@ impl Nodes {
             .iter()
             .map(|&(j, kk)| {
                 let mut wq = vec![0.0; nu * nu * nq];
+                // Pairs v ≥ u only, as the contraction uses them.
                 for u in 0..nu {
-                    for v in 0..nu {
+                    for v in u..nu {
                         let (a, b) = (1.0 / mu[v], 1.0 / mu[u]);
                         for q in 0..nq {
                             let c = 1.0 / x[q % k];
@@ -693,7 +695,7 @@ pub(crate) fn secondary(
             let mut down = vec![0.0; nu * nu];
             let mut up = vec![0.0; nu * nu];
             for u in 0..nu {
-                for v in 0..nu {
+                for v in u..nu {
                     let (a, b) = (1.0 / mu[v], 1.0 / mu[u]);
                     down[u * nu + v] = geometry(a, b, a, false, bounds[j], bounds[k]);
                     up[u * nu + v] = geometry(a, b, b, true, bounds[j], bounds[k]);

@@ -210,6 +210,19 @@ pub fn truncation_dominated(problem: &Problem, n: usize) -> bool {
         })
 }
 
+/// The levels of the estimate of `problem` at `n` streams: [`coarse_levels`],
+/// except that a truncation-dominated answer ([`truncation_dominated`]),
+/// whose estimate credits no order and is `d(N/2, N)`, uses `N/2` twice
+/// (no `3N/4` solve: it would only inform the contraction).
+fn estimate_levels(problem: &Problem, n: usize) -> Option<(usize, usize)> {
+    let (a, b) = coarse_levels(n)?;
+    Some(if truncation_dominated(problem, n) {
+        (a, a)
+    } else {
+        (a, b)
+    })
+}
+
 fn with_streams(problem: &Problem, n: usize) -> Problem {
     let mut p = problem.clone();
     p.settings.streams = n;
@@ -265,25 +278,20 @@ pub fn reflection_with_estimate_observed(
         on_progress(0.72 * done as f64 / bound.max(1) as f64)
     })?;
     let at_n = probe(&fine);
-    let estimate = match coarse_levels(n) {
-        Some((a, _)) if truncation_dominated(problem, n) => {
-            // No order credited: the whole change d(N/2, N), and no 3N/4
-            // solve (it would only inform the contraction).
-            let half = probe_at(problem, mu_user, a, n)?;
-            let (est, _) = estimate_from_levels([a, a, n], &half, &half, &at_n, false);
-            ErrorEstimate {
-                max_err_f11: est,
-                streams: [a, a, n],
-                contraction: None,
-            }
-        }
+    let estimate = match estimate_levels(problem, n) {
         Some((a, b)) => {
+            let half = probe_at(problem, mu_user, a, n)?;
+            let middle = if b == a {
+                half.clone()
+            } else {
+                probe_at(problem, mu_user, b, n)?
+            };
             let (est, contraction) = estimate_from_levels(
                 [a, b, n],
-                &probe_at(problem, mu_user, a, n)?,
-                &probe_at(problem, mu_user, b, n)?,
+                &half,
+                &middle,
                 &at_n,
-                true,
+                !truncation_dominated(problem, n),
             );
             ErrorEstimate {
                 max_err_f11: est,
@@ -349,7 +357,7 @@ pub fn reflection_to_tolerance(
     let mut previous = probe(&solve(2, 2)?);
     let mut n = 4;
     loop {
-        let (a, b) = coarse_levels(n).expect("n ≥ 4");
+        let (a, b) = estimate_levels(problem, n).expect("n ≥ 4");
         // The previous answer is this estimate's `N/2` level unless it
         // carried a secondary correction this level does not (`coarse`).
         if coarse(problem, a, a).settings.secondary_scattering
@@ -357,19 +365,20 @@ pub fn reflection_to_tolerance(
         {
             previous = probe(&solve(a, n)?);
         }
-        // A truncation-dominated answer credits no order: its estimate is
-        // d(N/2, N), and the 3N/4 level is not solved.
-        let dominated = truncation_dominated(problem, n);
-        let b = if dominated { a } else { b };
-        let middle = if dominated {
+        let middle = if b == a {
             previous.clone()
         } else {
             probe(&solve(b, n)?)
         };
         let r = solve(n, n)?;
         let fine = probe(&r);
-        let (est, contraction) =
-            estimate_from_levels([a, b, n], &previous, &middle, &fine, !dominated);
+        let (est, contraction) = estimate_from_levels(
+            [a, b, n],
+            &previous,
+            &middle,
+            &fine,
+            !truncation_dominated(problem, n),
+        );
         let last_change = max_diff(&previous, &fine) / max_of(&fine);
         // The answer itself must resolve every series (the coarse levels
         // of the estimate need not).

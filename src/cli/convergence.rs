@@ -31,8 +31,10 @@ pub struct ConvergenceArgs {
     plot: Option<String>,
 }
 
-/// Probe grid: 11 polar angles at the midpoints of 0..90°, 13 azimuths.
-fn probe_grid() -> (Vec<f64>, Vec<f64>) {
+/// Probe grid of docs/accuracy.md: cosines of 11 polar angles at the
+/// midpoints of 0..90°, 13 propagation azimuths over 0..180° (tests compare
+/// on the same grid).
+pub fn probe_grid() -> (Vec<f64>, Vec<f64>) {
     let mu: Vec<f64> = (0..11)
         .map(|k| (90.0 * (k as f64 + 0.5) / 11.0).to_radians().cos())
         .collect();

@@ -128,14 +128,7 @@ fn prune_exited(root: &std::path::Path) {
     }
 }
 
-/// The probe of docs/accuracy.md and `polbrdf convergence`: cosines of 11
-/// polar midpoints of 0–90° and 13 propagation azimuths over 0–180°.
+/// The probe of docs/accuracy.md and `polbrdf convergence` (its own grid).
 pub fn probe_grid() -> (Vec<f64>, Vec<f64>) {
-    let mu = (0..11)
-        .map(|k| (90.0 * (k as f64 + 0.5) / 11.0f64).to_radians().cos())
-        .collect();
-    let dphi = (0..13)
-        .map(|k| std::f64::consts::PI * k as f64 / 12.0)
-        .collect();
-    (mu, dphi)
+    polbrdf::cli::convergence::probe_grid()
 }

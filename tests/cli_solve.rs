@@ -41,7 +41,7 @@ fn mueller(v: &Value) -> [[f64; 4]; 4] {
     m
 }
 
-/// The Garcia–Siewert aerosol from ../shared/benchmarks as an `expansion` layer.
+/// The Garcia–Siewert aerosol from tests/data/benchmarks as an `expansion` layer.
 fn gs_spec(base: Value) -> Value {
     let c = common::benchmark("garcia_siewert_L13_coeffs.json")["coefficients"].clone();
     let mut exp = c.as_object().unwrap().clone();

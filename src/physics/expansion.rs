@@ -593,6 +593,7 @@ fn round_trip_error(
 
 #[cfg(test)]
 mod tests {
+    use super::test_data::garcia_siewert;
     use super::*;
     use std::f64::consts::PI;
 
@@ -627,35 +628,6 @@ mod tests {
     fn max_coeff_diff(a: &GreekCoefficients, b: &GreekCoefficients) -> f64 {
         assert_eq!(a.len(), b.len());
         max_change(a, b)
-    }
-
-    fn garcia_siewert() -> GreekCoefficients {
-        let path = concat!(
-            env!("CARGO_MANIFEST_DIR"),
-            "/../shared/benchmarks/garcia_siewert_L13_coeffs.json"
-        );
-        let text = std::fs::read_to_string(path).unwrap_or_else(|e| {
-            panic!("Garcia–Siewert benchmark file missing ({path}): {e}; it lives in the shared benchmarks directory next to the crate")
-        });
-        let v: serde_json::Value = serde_json::from_str(&text).expect("benchmark JSON parses");
-        let get = |name: &str| -> Vec<f64> {
-            v["coefficients"][name]
-                .as_array()
-                .unwrap_or_else(|| panic!("coefficients.{name} missing in {path}"))
-                .iter()
-                .map(|x| x.as_f64().expect("number"))
-                .collect()
-        };
-        let c = GreekCoefficients {
-            beta: get("beta"),
-            alpha: get("alpha"),
-            zeta: get("zeta"),
-            delta: get("delta"),
-            gamma: get("gamma"),
-            epsilon: get("epsilon"),
-        };
-        assert!(c.series().iter().all(|s| s.len() == 12));
-        c
     }
 
     #[test]
@@ -956,5 +928,42 @@ mod tests {
         // and a tolerance above the floor works
         let (e, report) = expand_adaptive(sampler, 4, 1e-7).unwrap();
         assert_eq!(e.len(), 12, "{report:?}");
+    }
+}
+
+/// Published coefficient sets the unit tests of several layers read
+/// (vendored in `tests/data/benchmarks`, each with its source and citation).
+#[cfg(test)]
+pub(crate) mod test_data {
+    use super::GreekCoefficients;
+
+    /// The Garcia–Siewert L=13 aerosol (Siewert 2000 Problem IIA), in the
+    /// Siewert/VLIDORT sign of conventions §4.
+    pub fn garcia_siewert() -> GreekCoefficients {
+        let path = concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/tests/data/benchmarks/garcia_siewert_L13_coeffs.json"
+        );
+        let text = std::fs::read_to_string(path)
+            .unwrap_or_else(|e| panic!("vendored benchmark file {path} is unreadable: {e}"));
+        let v: serde_json::Value = serde_json::from_str(&text).expect("benchmark JSON parses");
+        let get = |name: &str| -> Vec<f64> {
+            v["coefficients"][name]
+                .as_array()
+                .unwrap_or_else(|| panic!("coefficients.{name} missing in {path}"))
+                .iter()
+                .map(|x| x.as_f64().expect("number"))
+                .collect()
+        };
+        let c = GreekCoefficients {
+            beta: get("beta"),
+            alpha: get("alpha"),
+            zeta: get("zeta"),
+            delta: get("delta"),
+            gamma: get("gamma"),
+            epsilon: get("epsilon"),
+        };
+        assert!(c.series().iter().all(|s| s.len() == 12));
+        c
     }
 }

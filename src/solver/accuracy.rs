@@ -420,8 +420,8 @@ mod tests {
     /// the answer is, and never turns it on.
     #[test]
     fn coarse_levels_use_the_answers_method() {
-        use crate::solver::{Base, Layer, Settings, Thickness, phase};
-        let coef = phase::tests_support::garcia_siewert();
+        use crate::solver::{Base, Layer, Settings, Thickness};
+        let coef = crate::physics::expansion::test_data::garcia_siewert();
         let terms = coef.len();
         let problem = Problem {
             layers: vec![Layer {

@@ -1168,7 +1168,7 @@ mod symmetry_tests {
     }
 
     fn gs_layer(tau: f64) -> (Grid, Layer) {
-        let coef = phase::tests_support::garcia_siewert();
+        let coef = crate::physics::expansion::test_data::garcia_siewert();
         let (mu_q, w_q) = double_gauss(6);
         let grid = Grid {
             ns: 4,
@@ -1283,7 +1283,7 @@ mod law_tests {
     use std::f64::consts::PI;
 
     fn gs() -> GreekCoefficients {
-        phase::tests_support::garcia_siewert()
+        crate::physics::expansion::test_data::garcia_siewert()
     }
 
     /// A backward-peaked HG series the streams cannot integrate is refused

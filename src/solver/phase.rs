@@ -225,7 +225,7 @@ pub fn geometric_phase_matrix(
 mod tests {
     use super::*;
 
-    use super::tests_support::garcia_siewert;
+    use crate::physics::expansion::test_data::garcia_siewert;
 
     /// The Fourier sum `Σ_m (2 − δ_m0)[bd(A^m) cos mΔφ + od(A^m) sin mΔφ]`
     /// equals the geometric phase matrix built from the summed scattering
@@ -332,37 +332,6 @@ mod tests {
                     assert!((ba[i][j] - expect).abs() < 1e-13, "m={m} ({i},{j})");
                 }
             }
-        }
-    }
-}
-
-/// Test fixtures shared by the solver's unit tests.
-#[cfg(test)]
-pub(crate) mod tests_support {
-    use crate::physics::expansion::GreekCoefficients;
-
-    pub fn garcia_siewert() -> GreekCoefficients {
-        let path = concat!(
-            env!("CARGO_MANIFEST_DIR"),
-            "/../shared/benchmarks/garcia_siewert_L13_coeffs.json"
-        );
-        let text = std::fs::read_to_string(path).expect("benchmark file ../shared/benchmarks");
-        let v: serde_json::Value = serde_json::from_str(&text).unwrap();
-        let c = &v["coefficients"];
-        let get = |k: &str| -> Vec<f64> {
-            c[k].as_array()
-                .unwrap()
-                .iter()
-                .map(|x| x.as_f64().unwrap())
-                .collect()
-        };
-        GreekCoefficients {
-            beta: get("beta"),
-            alpha: get("alpha"),
-            zeta: get("zeta"),
-            delta: get("delta"),
-            gamma: get("gamma"),
-            epsilon: get("epsilon"),
         }
     }
 }

@@ -782,7 +782,8 @@ pub(crate) fn secondary(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::solver::phase::{a_matrix, tests_support::garcia_siewert};
+    use crate::physics::expansion::test_data::garcia_siewert;
+    use crate::solver::phase::a_matrix;
 
     /// The matrix-product kernel table equals [`a_matrix`] element by
     /// element, for up and down (flipped) directions, polarized and scalar.

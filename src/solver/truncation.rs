@@ -535,7 +535,7 @@ mod tests {
             layers: vec![Layer {
                 thickness: Thickness::Finite(1e-6),
                 albedo: 0.9,
-                coef: crate::solver::phase::tests_support::garcia_siewert(),
+                coef: crate::physics::expansion::test_data::garcia_siewert(),
             }],
             base,
             settings: Settings {
@@ -723,7 +723,7 @@ mod tests {
             layers: vec![Layer {
                 thickness: Thickness::Finite(tau),
                 albedo: 0.9,
-                coef: crate::solver::phase::tests_support::garcia_siewert(),
+                coef: crate::physics::expansion::test_data::garcia_siewert(),
             }],
             base: Base::Black,
             settings: Settings {
@@ -812,7 +812,7 @@ mod tests {
     #[test]
     fn no_secondary_correction_without_truncation() {
         use crate::solver::secondary::{ScaledLayer, secondary};
-        let coef = crate::solver::phase::tests_support::garcia_siewert();
+        let coef = crate::physics::expansion::test_data::garcia_siewert();
         let layer = ScaledLayer {
             top: 0.0,
             thickness: 1.0,

@@ -1,12 +1,13 @@
-//! Helpers shared by the integration tests: reading `../shared/benchmarks`.
+//! Helpers shared by the integration tests: reading the vendored benchmark tables
+//! (`tests/data/benchmarks`, each with its source and citation).
 #![allow(dead_code)]
 
 use polbrdf::physics::expansion::GreekCoefficients;
 use serde_json::Value;
 
-/// Parse a benchmark file from `../shared/benchmarks` (next to the repository).
+/// Parse a vendored benchmark file from `tests/data/benchmarks`.
 pub fn benchmark(name: &str) -> Value {
-    let path = format!("{}/../shared/benchmarks/{name}", env!("CARGO_MANIFEST_DIR"));
+    let path = format!("{}/tests/data/benchmarks/{name}", env!("CARGO_MANIFEST_DIR"));
     let text = std::fs::read_to_string(&path)
         .unwrap_or_else(|e| panic!("benchmark file {path} is required by this test: {e}"));
     serde_json::from_str(&text).expect("benchmark JSON")

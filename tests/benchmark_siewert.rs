@@ -3,7 +3,8 @@
 //! Garcia–Siewert L=13 aerosol, tau = 1, omega = 0.973527, mu0 = 0.6, black
 //! ground. Tolerances from the file's guidance: 1e-4 relative on I and 1e-5
 //! absolute on Q, U, V (radiance per incident flux pi normal to the beam).
-//! VLIDORT's U is the negative of ours (docs/conventions.md §5); Q and V agree.
+//! VLIDORT's U and V are the negatives of ours (docs/conventions.md §5: its
+//! meridian frame is ours with `e_ϕ` reversed); I and Q agree.
 
 mod common;
 
@@ -64,9 +65,10 @@ fn siewert_problem_iia_all_depths_and_directions() {
             for (k, expect) in floats(vals).into_iter().enumerate() {
                 let rho = if upward { &field.up[k] } else { &field.down[k] };
                 let m = fourier_sum(rho, field.ns, iu, iv, phi);
-                // Our U is the negative of VLIDORT's (docs/conventions.md §5;
-                // `solver::phase` test `single_scattering_u_sign_in_our_frames`).
-                let sign = if stokes == 2 { -1.0 } else { 1.0 };
+                // Our U and V are the negatives of VLIDORT's (docs/conventions.md
+                // §5; `solver::phase` test `single_scattering_u_sign_in_our_frames`,
+                // tests/mirror_jones.rs for V).
+                let sign = if stokes >= 2 { -1.0 } else { 1.0 };
                 let got = sign * std::f64::consts::PI * m[stokes][0];
                 let at = || {
                     format!(

@@ -338,13 +338,22 @@ pub(super) async fn row_of(state: &AppState, id: &str) -> Result<JobRow, ApiErro
     if !canonical::is_id(id) {
         return Err(ApiError::NotFound(id.to_string()));
     }
-    state
+    let row = state
         .0
         .jobs
         .index()
         .get(id)
         .await?
-        .ok_or_else(|| ApiError::NotFound(id.to_string()))
+        .ok_or_else(|| ApiError::NotFound(id.to_string()))?;
+    if !row.is_current() {
+        return Err(ApiError::Retired {
+            id: row.id,
+            version: row.result_version,
+            current: canonical::result_version(),
+            current_id: canonical::id_of_canonical(&row.spec),
+        });
+    }
+    Ok(row)
 }
 
 /// A BRDF job: state, progress, canonical spec, timings, error estimate,

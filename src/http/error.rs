@@ -51,6 +51,21 @@ pub enum ApiError {
     /// No such id: 404.
     #[error("no BRDF with id '{0}'")]
     NotFound(String),
+    /// The id names a result of an older schema/solver version: 410. Such
+    /// results are never served (docs/service.md, "Ids and versions").
+    #[error(
+        "BRDF {id} was computed by {version}, which this service ({current}) retired; submit the same spec again (POST /v1/brdfs) to compute it under the current version, id {current_id}"
+    )]
+    Retired {
+        /// The requested (old) id.
+        id: String,
+        /// The version that made it.
+        version: String,
+        /// The running version.
+        current: String,
+        /// The id of the same canonical spec under the running version.
+        current_id: String,
+    },
     /// No such route: 404.
     #[error("no route {0}")]
     NoRoute(String),
@@ -139,6 +154,12 @@ impl ApiError {
             ApiError::NotFound(_) | ApiError::NoRoute(_) => {
                 Problem::new("not-found", "Not found", 404, self.to_string())
             }
+            ApiError::Retired { .. } => Problem::new(
+                "retired-version",
+                "Result of a retired solver version",
+                410,
+                self.to_string(),
+            ),
             ApiError::NotReady { .. } => {
                 Problem::new("not-ready", "Result not ready", 409, self.to_string())
             }

@@ -8,8 +8,12 @@
 //! ```text
 //! a1      = Σ β_l d^l_00          a4      = Σ δ_l d^l_00
 //! a2 + a3 = Σ (α_l + ζ_l) d^l_22  a2 − a3 = Σ (α_l − ζ_l) d^l_{2,−2}
-//! b1      = Σ γ_l d^l_02          b2      = Σ ε_l d^l_02
+//! b1      = Σ γ_l d^l_02          b2      = −Σ ε_l d^l_02
 //! ```
+//!
+//! (`b2` with a minus sign: conventions §4 derives it from the published
+//! de Rooij & van der Stap ↔ Siewert conversion, which negates both `γ` and
+//! `ε`, and from `b2 = c Im(S2 S1*)` in our frames.)
 //!
 //! By the orthogonality `∫_{−1}^{1} d^l_{mn} d^{l'}_{mn} dμ = 2/(2l+1) δ_{ll'}`
 //! the coefficients are the projections
@@ -17,7 +21,7 @@
 //! ```text
 //! β_l = (2l+1)/2 ∫ a1 d^l_00 dμ,            δ_l = (2l+1)/2 ∫ a4 d^l_00 dμ,
 //! α_l ± ζ_l = (2l+1)/2 ∫ (a2 ± a3) d^l_{2,±2} dμ,
-//! γ_l = (2l+1)/2 ∫ b1 d^l_02 dμ,            ε_l = (2l+1)/2 ∫ b2 d^l_02 dμ,
+//! γ_l = (2l+1)/2 ∫ b1 d^l_02 dμ,            ε_l = −(2l+1)/2 ∫ b2 d^l_02 dμ,
 //! ```
 //!
 //! evaluated by Gauss–Legendre quadrature in [`expand`]; [`expand_adaptive`]
@@ -47,7 +51,7 @@ pub struct GreekCoefficients {
     pub delta: Vec<f64>,
     /// `γ_l`: `b1 = Σ γ_l d^l_02` (Rayleigh: `γ_2 = −√6/2`).
     pub gamma: Vec<f64>,
-    /// `ε_l`: `b2 = Σ ε_l d^l_02`.
+    /// `ε_l`: `b2 = −Σ ε_l d^l_02` (conventions §4; de Rooij's `β_2^l = −ε_l`).
     pub epsilon: Vec<f64>,
 }
 
@@ -178,7 +182,7 @@ impl GreekCoefficients {
                     let minus = dot(&sm, buf);
                     wigner_d_into(0, 2, x, buf);
                     let b1 = dot(&self.gamma, buf);
-                    let b2 = dot(&self.epsilon, buf);
+                    let b2 = -dot(&self.epsilon, buf);
                     [a1, 0.5 * (plus + minus), 0.5 * (plus - minus), a4, b1, b2]
                 },
             )
@@ -393,7 +397,7 @@ pub fn expand(
             .collect(),
         delta: project(&sums[1]),
         gamma: project(&sums[4]),
-        epsilon: project(&sums[5]),
+        epsilon: project(&sums[5]).into_iter().map(|v| -v).collect(),
     }
 }
 

@@ -71,12 +71,11 @@ impl Gsf {
 ///
 /// With `P = [[p,0,0,0],[0,r,−t,0],[0,−t,r,0],[0,0,0,p]]` the product expands
 /// to the sums below (written out so that each `l` costs a few multiply-adds).
-/// In our frames and with `P_l^m = d^l_{m0}` the matrix that reproduces
-/// `F34 = b2 = Σ ε_l d^l_02` (conventions §3–4) is `B_l` of seed eq. 22 with
-/// the sign of `ε` reversed, `[[ζ, ε], [−ε, δ]]` in its lower block: the
-/// seed's (Siewert's) functions carry a factor `i^m` and another orientation
-/// of the azimuth. The test `fourier_sum_matches_geometric_phase_matrix`
-/// pins every sign against the geometric phase matrix.
+/// `B_l` is seed eq. 22 as printed (Siewert 2000 eq. 17), lower block
+/// `[[ζ, −ε], [ε, δ]]`; with `P_l^m = d^l_{m0}` it reproduces
+/// `F34 = b2 = −Σ ε_l d^l_02` (conventions §4) in our frames. The test
+/// `fourier_sum_matches_geometric_phase_matrix` pins every sign against the
+/// geometric phase matrix.
 pub fn a_matrix(coef: &GreekCoefficients, m: usize, a: &Gsf, b: &Gsf, polarized: bool) -> Mueller {
     let mut out = [[0.0; 4]; 4];
     let l_max = coef.beta.len().min(a.p.len());
@@ -105,15 +104,13 @@ pub fn a_matrix(coef: &GreekCoefficients, m: usize, a: &Gsf, b: &Gsf, polarized:
         out[1][0] += r * ga * q;
         out[1][1] += r * al * s + t * ze * u;
         out[1][2] -= r * al * u + t * ze * s;
-        // ε enters with the sign that makes the series reproduce
-        // F34 = b2 = Σ ε_l d^l_02 in our frames (conventions §3–4).
-        out[1][3] -= t * ep * q;
+        out[1][3] += t * ep * q;
         out[2][0] -= t * ga * q;
         out[2][1] -= t * al * s + r * ze * u;
         out[2][2] += t * al * u + r * ze * s;
-        out[2][3] += r * ep * q;
-        out[3][1] += p * ep * u;
-        out[3][2] -= p * ep * s;
+        out[2][3] -= r * ep * q;
+        out[3][1] -= p * ep * u;
+        out[3][2] += p * ep * s;
         out[3][3] += p * de * q;
     }
     out

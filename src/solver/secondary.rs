@@ -291,9 +291,9 @@ fn a_table(
             let set = |o: &mut Vec<Mat<f64>>, e: usize, v: f64| o[e][(i, j)] = v;
             set(&mut out, 0, blk(&pq, 0, i, j));
             set(&mut out, 4, blk(&pq, 1, i, j));
-            set(&mut out, 7, -blk(&pq, 2, i, j));
+            set(&mut out, 7, blk(&pq, 2, i, j));
             set(&mut out, 8, -blk(&pq, 3, i, j));
-            set(&mut out, 11, blk(&pq, 4, i, j));
+            set(&mut out, 11, -blk(&pq, 4, i, j));
             set(&mut out, 15, blk(&pq, 5, i, j));
             set(&mut out, 1, blk(&ps, 0, i, j));
             set(&mut out, 2, -blk(&pu, 0, i, j));
@@ -301,8 +301,8 @@ fn a_table(
             set(&mut out, 6, -(blk(&pu, 1, i, j) + blk(&ps, 2, i, j)));
             set(&mut out, 9, -(blk(&ps, 3, i, j) + blk(&pu, 4, i, j)));
             set(&mut out, 10, blk(&pu, 3, i, j) + blk(&ps, 4, i, j));
-            set(&mut out, 13, blk(&pu, 5, i, j));
-            set(&mut out, 14, -blk(&ps, 5, i, j));
+            set(&mut out, 13, -blk(&pu, 5, i, j));
+            set(&mut out, 14, blk(&ps, 5, i, j));
         }
     }
     out

@@ -32,8 +32,17 @@ use sha2::{Digest, Sha256};
 /// Version of the spec schema mixed into every id.
 pub const SCHEMA_VERSION: &str = "1";
 
-/// Version of the solver's results mixed into every id.
-pub const SOLVER_VERSION: &str = "2";
+/// Version of the solver's results mixed into every id. Version 3: the
+/// Greek coefficient `ε` is read and written in the Siewert sign of
+/// conventions §4 (`b2 = −Σ ε_l d^l_02`); version 2 read a user's `ε` with the
+/// opposite sign, so every result with an `expansion` layer changed.
+pub const SOLVER_VERSION: &str = "3";
+
+/// The version label stored with every cached row: `"polbrdf-spec/S
+/// polbrdf-solver/V"`. A row with another label is never served (docs/service.md).
+pub fn result_version() -> String {
+    format!("polbrdf-spec/{SCHEMA_VERSION} polbrdf-solver/{SOLVER_VERSION}")
+}
 
 /// The spec with the defaults of its own fields filled in and equivalent
 /// spellings unified (step 1 of the module documentation, except the solver

@@ -8,6 +8,7 @@
 //! `FOR UPDATE SKIP LOCKED` and leases) behind the same methods.
 
 use super::StorageError;
+use crate::spec::canonical::result_version;
 use sqlx::sqlite::{SqliteConnectOptions, SqliteJournalMode, SqlitePoolOptions, SqliteSynchronous};
 use sqlx::{Row, SqlitePool};
 use std::str::FromStr;
@@ -89,6 +90,17 @@ pub struct JobRow {
     pub updated_at: i64,
     /// When it became done or failed (ms since the epoch).
     pub finished_at: Option<i64>,
+    /// The schema/solver version that made the row
+    /// ([`crate::spec::canonical::result_version`]).
+    pub result_version: String,
+}
+
+impl JobRow {
+    /// Made by the running version; rows of older versions are never served
+    /// nor solved (docs/service.md, "Ids and versions").
+    pub fn is_current(&self) -> bool {
+        self.result_version == result_version()
+    }
 }
 
 /// The SQLite index.
@@ -98,7 +110,7 @@ pub struct Index {
 }
 
 const COLUMNS: &str = "id, status, spec, wavelengths, progress, wall_time_ms, error_estimate, \
-     error, digest, size, media_type, attempts, created_at, updated_at, finished_at";
+     error, digest, size, media_type, attempts, created_at, updated_at, finished_at, result_version";
 
 impl Index {
     /// Connect (creating the database file if needed), switch to WAL and run
@@ -139,12 +151,15 @@ impl Index {
         row.map(|r| to_row(&r)).transpose()
     }
 
-    /// Queued and running rows, oldest first (the start-up scan).
+    /// Queued and running rows of the current version, oldest first (the
+    /// start-up scan; rows of older versions are never solved).
     pub async fn unfinished(&self) -> Result<Vec<JobRow>, StorageError> {
         let sql = format!(
-            "SELECT {COLUMNS} FROM jobs WHERE status IN ('queued', 'running') ORDER BY created_at, id"
+            "SELECT {COLUMNS} FROM jobs WHERE status IN ('queued', 'running') AND result_version = ?
+             ORDER BY created_at, id"
         );
         let rows = sqlx::query(sqlx::AssertSqlSafe(sql))
+            .bind(result_version())
             .fetch_all(&self.pool)
             .await?;
         rows.iter().map(to_row).collect()
@@ -161,17 +176,18 @@ impl Index {
         now: i64,
     ) -> Result<(), StorageError> {
         sqlx::query(
-            "INSERT INTO jobs (id, status, spec, wavelengths, created_at, updated_at)
-             VALUES (?1, 'queued', ?2, ?3, ?4, ?4)
+            "INSERT INTO jobs (id, status, spec, wavelengths, created_at, updated_at, result_version)
+             VALUES (?1, 'queued', ?2, ?3, ?4, ?4, ?5)
              ON CONFLICT (id) DO UPDATE SET
                status = 'queued', progress = 0, wall_time_ms = '[]', error_estimate = NULL,
                error = NULL, digest = NULL, size = NULL, media_type = NULL,
-               updated_at = ?4, finished_at = NULL",
+               updated_at = ?4, finished_at = NULL, result_version = ?5",
         )
         .bind(id)
         .bind(spec)
         .bind(wavelengths)
         .bind(now)
+        .bind(result_version())
         .execute(&self.pool)
         .await?;
         Ok(())
@@ -310,6 +326,7 @@ fn to_row(r: &sqlx::sqlite::SqliteRow) -> Result<JobRow, StorageError> {
         created_at: r.try_get("created_at")?,
         updated_at: r.try_get("updated_at")?,
         finished_at: r.try_get("finished_at")?,
+        result_version: r.try_get("result_version")?,
     })
 }
 

@@ -1,10 +1,10 @@
-//! The binary table file, version 3 (docs/table-format.md, the normative
+//! The binary table file, version 4 (docs/table-format.md, the normative
 //! description). Little-endian throughout.
 //!
 //! ```text
 //! header (56 bytes)
 //!   0  8  magic  b"PBRDFTAB"
-//!   8  4  u32    format version (3)
+//!   8  4  u32    format version (4)
 //!  12  4  u32    data type of the coefficients: 1 = f32, 2 = f64
 //!  16  8  u64    payload length in bytes (everything after the header)
 //!  24 32  SHA-256 of header bytes 0..24 followed by the payload
@@ -44,7 +44,7 @@ use sha2::{Digest, Sha256};
 pub const MAGIC: [u8; 8] = *b"PBRDFTAB";
 
 /// The format version this build writes and reads.
-pub const VERSION: u32 = 3;
+pub const VERSION: u32 = 4;
 
 /// Header size in bytes.
 pub const HEADER_LEN: usize = 56;

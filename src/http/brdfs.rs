@@ -586,7 +586,7 @@ fn dense_bytes(
         TableQuery,
     ),
     responses(
-        (status = 200, description = "The BRDF table (docs/table-format.md), Content-Type application/vnd.polbrdf.table; version=3; or with format=npy (application/x-npy) or format=json (application/json) a dense export; or with format=mitsuba a Mitsuba 3 measured_polarized tensor file (docs/mitsuba.md)",
+        (status = 200, description = "The BRDF table (docs/table-format.md), Content-Type application/vnd.polbrdf.table; version=4; or with format=npy (application/x-npy) or format=json (application/json) a dense export; or with format=mitsuba a Mitsuba 3 measured_polarized tensor file (docs/mitsuba.md)",
          headers(("ETag" = String, description = "\"<sha256 of the bytes>\""),
                  ("Cache-Control" = String, description = "public, max-age=31536000, immutable"))),
         (status = 304, description = "The client's copy is current",

@@ -21,7 +21,7 @@ use std::time::Instant;
 /// Media type of the stored bytes, with the table format version
 /// (`brdf::format::VERSION`): a row stored in another version is stale and
 /// is solved again on its next request (`Jobs::result_bytes`).
-pub const MEDIA_TYPE: &str = "application/vnd.polbrdf.table; version=3";
+pub const MEDIA_TYPE: &str = "application/vnd.polbrdf.table; version=4";
 
 #[cfg(test)]
 #[test]

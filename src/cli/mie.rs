@@ -9,7 +9,16 @@
 //! polbrdf mie --n 2.954 --k 0 --wavelength-nm 550 --radius-um 0.2
 //! polbrdf mie ... --lognormal-rg-um 0.2 --lognormal-sigma 1.3   (instead of --radius-um)
 //! polbrdf mie ... --gamma-reff-um 0.2 --gamma-veff 0.05         (instead of --radius-um)
+//! polbrdf mie ... --gamma-reff-um 1.05 --gamma-veff 0.07 \
+//!     --radius-min-um 0.0616236 --radius-max-um 3.3845421       (explicit integration limits)
 //! ```
+//!
+//! `--radius-min-um` / `--radius-max-um` (both or neither, distributions
+//! only, `1e-6 ≤ min < max ≤ 1e4` µm) replace the tail cuts of the radius
+//! integral (`physics::psd`, Truncation); `n(r)` keeps its normalisation
+//! over `(0, ∞)`, so the mean cross sections are those of the particles
+//! inside the limits per particle of the whole distribution, while the
+//! normalised matrix, `g`, the albedo and the expansion do not depend on it.
 //!
 //! # Output (JSON, conventions §1–§4)
 //!
@@ -42,9 +51,9 @@
 //!   `n_check_points`.
 //!
 //! For a distribution, the bulk quantities come from one radius quadrature
-//! (with the requested angles and 180°) and the expansion from the
-//! quadratures of `mie_optics`; the two agree to the quadrature tolerance
-//! (~1e-6 relative).
+//! (with the requested angles and 180°) and the expansion from the fixed
+//! radius rule of `physics::mie_optics_distribution`; the two agree to the
+//! quadrature tolerance (~1e-6 relative).
 //!
 //! Errors (one line, non-zero exit) name the offending flag.
 
@@ -100,6 +109,14 @@ pub struct MieArgs {
         value_name = "DEG,..."
     )]
     angles_deg: Option<Vec<f64>>,
+    /// Size distribution only: explicit lower limit of the radius integral
+    /// in µm (requires --radius-max-um; default: the tail cuts of physics::psd)
+    #[arg(long)]
+    radius_min_um: Option<f64>,
+    /// Size distribution only: explicit upper limit of the radius integral
+    /// in µm (requires --radius-min-um)
+    #[arg(long)]
+    radius_max_um: Option<f64>,
     /// Truncation tolerance of the Greek expansion, in (0, 1) (default:
     /// 1e-10 for x < 20, relaxed for larger particles).
     #[arg(long, allow_negative_numbers = true)]
@@ -149,6 +166,10 @@ pub fn run(a: &MieArgs) -> Result<Value, String> {
         .map(|t| t.to_radians().cos())
         .collect();
     let (_, m) = mie::wavenumber_and_index(index, a.host_index, wavelength_nm).map_err(err)?;
+    let quad = psd::PsdQuadrature {
+        radius_range_um: radius_limits(a, &size)?,
+        ..Default::default()
+    };
 
     let mut out = json!({
         "material": material,
@@ -185,7 +206,6 @@ pub fn run(a: &MieArgs) -> Result<Value, String> {
             // 180° first (for c_back), then the requested angles.
             let mut mu_all = vec![-1.0];
             mu_all.extend_from_slice(&mu);
-            let quad = psd::PsdQuadrature::default();
             let b = psd::bulk_optics(&dist, index, a.host_index, wavelength_nm, &mu_all, &quad)
                 .map_err(err)?;
             o.insert("size_distribution".into(), json!(dist));
@@ -229,18 +249,26 @@ pub fn run(a: &MieArgs) -> Result<Value, String> {
             }),
         );
     }
-    let optics = physics::mie_optics(
-        index,
-        a.host_index,
-        wavelength_nm,
-        radius_um,
-        distribution,
-        a.expansion_tolerance,
-    )
+    let optics = match distribution {
+        Some(d) => physics::mie_optics_distribution(
+            index,
+            a.host_index,
+            wavelength_nm,
+            &d,
+            &quad,
+            a.expansion_tolerance,
+        ),
+        None => physics::mie_optics(
+            index,
+            a.host_index,
+            wavelength_nm,
+            radius_um,
+            None,
+            a.expansion_tolerance,
+        ),
+    }
     .map_err(err)?;
-    let tolerance = a
-        .expansion_tolerance
-        .unwrap_or_else(|| physics::default_expansion_tolerance(optics.size_parameter));
+    let tolerance = optics.tolerance;
     let r = &optics.report;
     o.insert(
         "expansion".into(),
@@ -306,6 +334,35 @@ fn particle_index(
         (None, None, Some(_)) => Err("--k requires --n (real part)".into()),
         (None, None, None) => {
             Err("missing particle index: give --material NAME, or --n N with --k K".into())
+        }
+    }
+}
+
+/// `--radius-min-um` / `--radius-max-um`: both or neither, only with a
+/// distribution, `0 < min < max` (the range is checked by `physics::psd`).
+fn radius_limits(a: &MieArgs, size: &Size) -> Result<Option<[f64; 2]>, String> {
+    match (a.radius_min_um, a.radius_max_um) {
+        (None, None) => Ok(None),
+        (Some(_), None) => Err("--radius-min-um requires --radius-max-um".into()),
+        (None, Some(_)) => Err("--radius-max-um requires --radius-min-um".into()),
+        (Some(lo), Some(hi)) => {
+            if let Size::Radius(_) = size {
+                return Err(
+                    "--radius-min-um/--radius-max-um: only with a size distribution \
+                            (--lognormal-* or --gamma-*), not --radius-um"
+                        .into(),
+                );
+            }
+            positive("--radius-min-um", lo)?;
+            positive("--radius-max-um", hi)?;
+            if lo >= hi {
+                return Err(format!(
+                    "--radius-max-um = {}: must be greater than --radius-min-um = {}",
+                    number(hi),
+                    number(lo)
+                ));
+            }
+            Ok(Some([lo, hi]))
         }
     }
 }
@@ -385,6 +442,8 @@ fn err(e: PhysicsError) -> String {
             "r_eff_um" => "--gamma-reff-um",
             "v_eff" => "--gamma-veff",
             "tolerance" => "--expansion-tolerance",
+            "radius_min_um" => "--radius-min-um",
+            "radius_max_um" => "--radius-max-um",
             n if n.starts_with("size_parameter") => {
                 "size parameter 2π r n_host/λ (--radius-um or distribution, --wavelength-nm, --host-index)"
             }

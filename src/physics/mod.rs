@@ -86,10 +86,9 @@ pub enum PhysicsError {
 
 /// Default truncation tolerance of the Greek expansion for a Mie population
 /// of largest size parameter `x`: `1e-10` for small particles, relaxed for
-/// forward-peaked ones down to the round-off floor of the projection
-/// (`expansion::expand_adaptive`: about `7.5e-9` at `x ≈ 100`; measured
-/// floors of the size-distribution path: 1.3e-6 at `x = 2000`, 2.8e-5 at
-/// 5000, 2.2e-4 at 10000).
+/// forward-peaked ones (fewer terms for the solver). Both Mie paths project
+/// exactly ([`expand_polynomial`]), and the tolerance used is never below
+/// ten times the round-off floor measured for the case at hand.
 pub fn default_expansion_tolerance(x: f64) -> f64 {
     if x < 20.0 {
         1e-10
@@ -112,61 +111,137 @@ pub fn default_expansion_tolerance(x: f64) -> f64 {
 /// `μ = cos Θ` (`π_n` has degree `n − 1`, `τ_n` degree `n`), so a1…b2 are
 /// polynomials of degree `2N`, the series ends at `l = 2N`, and Gauss–Legendre
 /// quadrature with `2N + 2` nodes projects every coefficient exactly (the
-/// integrand has degree `≤ 4N`). One projection replaces the adaptive search.
-/// Trailing terms below `tolerance · β_0` in all six series are dropped; the
-/// round trip is checked on `min(2L + 65, 4001)` angles uniform in `Θ`.
+/// integrand has degree `≤ 4N`). One projection replaces the adaptive search;
+/// truncation and the round-off floor are those of [`expand_polynomial`].
 pub fn expand_sphere(
     res: &mie::MieResult,
     tolerance: f64,
 ) -> Result<(expansion::GreekCoefficients, expansion::ExpansionReport), PhysicsError> {
-    if !(tolerance > 0.0 && tolerance < 1.0) {
-        return Err(PhysicsError::OutOfRange {
+    check_tolerance(tolerance)?;
+    let (c, r, _) = expand_sphere_with(res, Ok(tolerance))?;
+    Ok((c, r))
+}
+
+/// [`expand_sphere`] with the tolerance rule of [`expand_polynomial`].
+fn expand_sphere_with(
+    res: &mie::MieResult,
+    tolerance: Result<f64, f64>,
+) -> Result<
+    (
+        expansion::GreekCoefficients,
+        expansion::ExpansionReport,
+        f64,
+    ),
+    PhysicsError,
+> {
+    let l_max = 2 * res.n_terms;
+    let (nodes, weights) = quadrature::gauss_legendre(l_max + 2);
+    let samples = res.scattering_matrix(&nodes)?;
+    expand_polynomial(&samples, &weights, l_max, tolerance, |mu| {
+        res.scattering_matrix(mu)
+    })
+}
+
+fn check_tolerance(tolerance: f64) -> Result<(), PhysicsError> {
+    if tolerance > 0.0 && tolerance < 1.0 {
+        Ok(())
+    } else {
+        Err(PhysicsError::OutOfRange {
             name: "expansion_tolerance",
             value: tolerance,
             range: "(0, 1)".into(),
-        });
+        })
     }
-    let l_max = 2 * res.n_terms;
-    let n_nodes = l_max + 2;
-    let (nodes, weights) = quadrature::gauss_legendre(n_nodes);
-    let samples = res.scattering_matrix(&nodes)?;
-    let full = expansion::expand(&samples, &weights, l_max);
+}
+
+/// Truncated Greek expansion of a scattering matrix that is a polynomial of
+/// degree `≤ l_max` in `μ` (one sphere, or a fixed finite sum of spheres),
+/// from its `samples` at the `l_max + 2` Gauss–Legendre nodes with `weights`
+/// (an exact projection, [`expansion::expand`]); `exact(mu)` samples the same
+/// function on the check grid.
+///
+/// 1. **Round-off floor.** The full series (`l = 0..l_max`) reproduces the
+///    function up to rounding only; its largest deviation on a grid of
+///    `min(2 l_max + 65, 4001)` angles uniform in `Θ`, relative to `max a1`
+///    there, is the attainable accuracy `floor` of this case.
+/// 2. **Tolerance.** `Ok(t)`: `t`, which must not be below `floor` (else
+///    `OutOfRange` naming the attainable range); `Err(default)`:
+///    `max(default, 10 floor)`.
+/// 3. **Truncation.** Trailing terms below `t · β_0` in all six series are
+///    dropped; the round trip of the kept series on the same grid is reported.
+///
+/// Returns the coefficients, the report and the tolerance used.
+pub fn expand_polynomial(
+    samples: &ScatteringMatrixSamples,
+    weights: &[f64],
+    l_max: usize,
+    tolerance: Result<f64, f64>,
+    exact: impl Fn(&[f64]) -> Result<ScatteringMatrixSamples, PhysicsError>,
+) -> Result<
+    (
+        expansion::GreekCoefficients,
+        expansion::ExpansionReport,
+        f64,
+    ),
+    PhysicsError,
+> {
+    let full = expansion::expand(samples, weights, l_max);
+    let n_check = (2 * l_max + 65).min(4001);
+    let theta: Vec<f64> = (0..n_check)
+        .map(|k| (std::f64::consts::PI * k as f64 / (n_check - 1) as f64).cos())
+        .collect();
+    let reference = exact(&theta)?;
+    let scale = reference.a1.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let round_trip = |c: &expansion::GreekCoefficients| -> f64 {
+        let approx = c.evaluate(&theta);
+        let mut worst: f64 = 0.0;
+        for (e, a) in [
+            (&reference.a1, &approx.a1),
+            (&reference.a2, &approx.a2),
+            (&reference.a3, &approx.a3),
+            (&reference.a4, &approx.a4),
+            (&reference.b1, &approx.b1),
+            (&reference.b2, &approx.b2),
+        ] {
+            for (x, y) in e.iter().zip(a.iter()) {
+                worst = worst.max((x - y).abs());
+            }
+        }
+        worst / scale
+    };
+    let floor = round_trip(&full);
+    let tol = match tolerance {
+        Ok(t) if t < floor => {
+            return Err(PhysicsError::OutOfRange {
+                name: "tolerance",
+                value: t,
+                range: format!(
+                    "[{floor:.1e}, 1): the exact projection reproduces the scattering \
+                     matrix only to that level (round-off of the sampled functions)"
+                ),
+            });
+        }
+        Ok(t) => t,
+        Err(default) => default.max(10.0 * floor).min(0.5),
+    };
     let beta0 = full.beta[0].abs();
     let series = full.series();
     let last = (0..full.len())
         .rev()
-        .find(|&l| series.iter().any(|c| c[l].abs() > tolerance * beta0))
+        .find(|&l| series.iter().any(|c| c[l].abs() > tol * beta0))
         .unwrap_or(0);
     let coefficients = full.truncated(last);
-    let n_check = (2 * last + 65).min(4001);
-    let theta: Vec<f64> = (0..n_check)
-        .map(|k| (std::f64::consts::PI * k as f64 / (n_check - 1) as f64).cos())
-        .collect();
-    let exact = res.scattering_matrix(&theta)?;
-    let approx = coefficients.evaluate(&theta);
-    let scale = exact.a1.iter().cloned().fold(0.0, f64::max);
-    let mut worst: f64 = 0.0;
-    for (e, a) in [
-        (&exact.a1, &approx.a1),
-        (&exact.a2, &approx.a2),
-        (&exact.a3, &approx.a3),
-        (&exact.a4, &approx.a4),
-        (&exact.b1, &approx.b1),
-        (&exact.b2, &approx.b2),
-    ] {
-        for (x, y) in e.iter().zip(a.iter()) {
-            worst = worst.max((x - y).abs());
-        }
-    }
+    let round_trip_error = round_trip(&coefficients);
     Ok((
         coefficients,
         expansion::ExpansionReport {
             n_terms: last + 1,
-            n_nodes,
+            n_nodes: weights.len(),
             projection_change: 0.0,
             n_check_points: n_check,
-            round_trip_error: worst / scale,
+            round_trip_error,
         },
+        tol,
     ))
 }
 
@@ -184,6 +259,9 @@ pub struct MieOptics {
     pub coefficients: expansion::GreekCoefficients,
     /// How the expansion was obtained.
     pub report: expansion::ExpansionReport,
+    /// Truncation tolerance used (the requested one, or the default of
+    /// [`expand_polynomial`]).
+    pub tolerance: f64,
 }
 
 /// Single-scattering albedo and Greek coefficients of a Mie population
@@ -202,43 +280,84 @@ pub fn mie_optics(
         (Some(r), None) => {
             let res = mie::MieResult::for_sphere(index, host_index, wavelength_nm, r)?;
             let x = res.size_parameter;
-            let tol = tolerance.unwrap_or_else(|| default_expansion_tolerance(x));
-            let (coefficients, report) = expand_sphere(&res, tol)?;
+            if let Some(t) = tolerance {
+                check_tolerance(t)?;
+            }
+            let tol = tolerance.ok_or_else(|| default_expansion_tolerance(x));
+            let (coefficients, report, tolerance) = expand_sphere_with(&res, tol)?;
             Ok(MieOptics {
                 albedo: res.albedo,
                 g: res.g,
                 size_parameter: x,
                 coefficients,
                 report,
+                tolerance,
             })
         }
-        (None, Some(dist)) => {
-            let quad = psd::PsdQuadrature::default();
-            // Bulk quantities (and the largest size parameter) from one pass.
-            let probe = psd::bulk_optics(&dist, index, host_index, wavelength_nm, &[1.0], &quad)?;
-            let x = probe.size_parameter_max;
-            let tol = tolerance.unwrap_or_else(|| default_expansion_tolerance(x));
-            let l_hint = (2.0 * x + 10.0).ceil() as usize;
-            let (coefficients, report) = expansion::expand_adaptive(
-                |mu| {
-                    psd::bulk_optics(&dist, index, host_index, wavelength_nm, mu, &quad)
-                        .map(|b| b.matrix)
-                },
-                l_hint,
-                tol,
-            )?;
-            Ok(MieOptics {
-                albedo: probe.albedo,
-                g: probe.g,
-                size_parameter: x,
-                coefficients,
-                report,
-            })
-        }
+        (None, Some(dist)) => mie_optics_distribution(
+            index,
+            host_index,
+            wavelength_nm,
+            &dist,
+            &psd::PsdQuadrature::default(),
+            tolerance,
+        ),
         _ => Err(PhysicsError::Invalid(
             "give exactly one of radius_um and size_distribution".into(),
         )),
     }
+}
+
+/// [`mie_optics`] of a size distribution with explicit quadrature settings
+/// (e.g. integration limits, `psd::PsdQuadrature::radius_range_um`).
+///
+/// One adaptive radius quadrature ([`psd::bulk_optics_with_rule`]) is run
+/// at the `2N + 2` Gauss nodes (`N` the series length at the upper cut), and
+/// the rule it settles on is kept fixed: the averaged matrix is then a
+/// polynomial of degree `2N` in `μ`, projected exactly by those nodes and
+/// checked on a grid with the same rule ([`expand_polynomial`]). Sampling it
+/// by separate adaptive quadratures per angle set (as up to solver version 3)
+/// mixed rules whose nodes differ with the angles, a noise of ~1e-8 relative
+/// that stalled the projection above the default tolerance.
+///
+/// The coefficients are those of the rule's average to rounding and the
+/// truncation tolerance; the rule differs from the exact size average by the
+/// quadrature error `psd::BulkOptics::rel_error_estimate` (≤ `quad.rel_tol`),
+/// an error of the optical input (like the Mie series' truncation), not of
+/// the expansion: it does not enter the solver's discretization estimate.
+pub fn mie_optics_distribution(
+    index: RefractiveIndex,
+    host_index: f64,
+    wavelength_nm: f64,
+    dist: &psd::SizeDistribution,
+    quad: &psd::PsdQuadrature,
+    tolerance: Option<f64>,
+) -> Result<MieOptics, PhysicsError> {
+    if let Some(t) = tolerance {
+        check_tolerance(t)?;
+    }
+    dist.validate()?;
+    let (k, _) = mie::wavenumber_and_index(index, host_index, wavelength_nm)?;
+    let [_, r_max] = psd::radius_limits_um(dist, k, quad)?;
+    // Out-of-range sizes are reported by the quadrature; do not size the
+    // Gauss rule beyond the validated range.
+    let x_cut = (k * r_max).min(mie::SIZE_PARAMETER_MAX);
+    let l_max = 2 * mie::series_length(x_cut);
+    let (nodes, weights) = quadrature::gauss_legendre(l_max + 2);
+    let (bulk, rule) =
+        psd::bulk_optics_with_rule(dist, index, host_index, wavelength_nm, &nodes, quad)?;
+    let x = bulk.size_parameter_max;
+    let tol = tolerance.ok_or_else(|| default_expansion_tolerance(x));
+    let (coefficients, report, tolerance) =
+        expand_polynomial(&bulk.matrix, &weights, l_max, tol, |mu| rule.matrix(mu))?;
+    Ok(MieOptics {
+        albedo: bulk.albedo,
+        g: bulk.g,
+        size_parameter: x,
+        coefficients,
+        report,
+        tolerance,
+    })
 }
 
 /// [`mie_optics`] with the default tolerance, returning `(albedo, coefficients)`.

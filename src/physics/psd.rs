@@ -197,6 +197,12 @@ pub struct PsdQuadrature {
     /// Largest number of radius nodes (Mie evaluations) before giving up
     /// with an error. Default `200 000`.
     pub max_nodes: usize,
+    /// Explicit integration limits `[r_min, r_max]` in µm, replacing the
+    /// tail-fraction cuts (module doc, Truncation). `n(r)` keeps its
+    /// normalisation over `(0, ∞)`; the normalised matrix, albedo and `g` do
+    /// not depend on it. Default `None`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub radius_range_um: Option<[f64; 2]>,
 }
 
 impl Default for PsdQuadrature {
@@ -205,6 +211,7 @@ impl Default for PsdQuadrature {
             tail_fraction: 1e-6,
             rel_tol: 1e-6,
             max_nodes: 200_000,
+            radius_range_um: None,
         }
     }
 }
@@ -254,9 +261,159 @@ pub fn bulk_optics(
     mu: &[f64],
     quad: &PsdQuadrature,
 ) -> Result<BulkOptics, PhysicsError> {
+    Ok(bulk_optics_with_rule(dist, particle, n_host, wavelength_nm, mu, quad)?.0)
+}
+
+/// [`bulk_optics`], also returning the radius quadrature it settled on as a
+/// fixed [`RadiusRule`]: the averaged matrix of the rule at any other
+/// cosines is the same function of `μ` as at `mu` (see [`RadiusRule`]).
+pub fn bulk_optics_with_rule(
+    dist: &SizeDistribution,
+    particle: RefractiveIndex,
+    n_host: f64,
+    wavelength_nm: f64,
+    mu: &[f64],
+    quad: &PsdQuadrature,
+) -> Result<(BulkOptics, RadiusRule), PhysicsError> {
     let mut integ = Integrator::new(dist, particle, n_host, wavelength_nm, mu, quad)?;
     let t = integ.integrate()?;
-    Ok(integ.finish(&t))
+    Ok((integ.finish(&t), integ.rule()))
+}
+
+/// A radius quadrature fixed once: `⟨f⟩ = ∫ n(r) f(r) dr ≈ Σ_i W_i f(r_i)`.
+///
+/// The adaptive Simpson rule of [`bulk_optics`] with its Richardson
+/// correction is, on each accepted panel `[a, b]` of `u`, Boole's rule on the
+/// five nodes `a, a + h/4, …, b` with weights `(b − a)(7, 32, 12, 32, 7)/90`;
+/// `W_i` is that weight times `n(r) dr/du`. Where the adaptive rule places its
+/// nodes depends on the angles it was asked for, so sampling the averaged
+/// matrix through repeated adaptive integrations at different angle sets
+/// mixes different rules (relative noise ~`rel_tol` between the sets, which
+/// no angular projection can converge below). The fixed rule instead gives
+/// one function of `μ` at every cosine: a finite sum of single-sphere
+/// matrices, i.e. a polynomial of degree `2 N(x_max)` (`N` of
+/// [`mie::series_length`]) that Gauss quadrature projects exactly. It
+/// differs from the exact size average by the quadrature error of
+/// [`BulkOptics::rel_error_estimate`] at the angles the rule was chosen for.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RadiusRule {
+    /// Relative index of the spheres.
+    m: C64,
+    /// Size parameter per µm of radius.
+    k: f64,
+    /// Size parameters `x_i = k r_i` of the nodes, increasing.
+    size_parameter: Vec<f64>,
+    /// Weights `W_i` (per particle; `Σ W_i ≈` the number fraction inside the limits).
+    weight: Vec<f64>,
+}
+
+/// Fixed number of node blocks summed in parallel by [`RadiusRule::matrix`]
+/// (added in order, so the sum does not depend on the thread count).
+const RULE_CHUNKS: usize = 32;
+
+impl RadiusRule {
+    /// Number of radius nodes.
+    pub fn len(&self) -> usize {
+        self.weight.len()
+    }
+
+    /// `true` if the rule has no nodes.
+    pub fn is_empty(&self) -> bool {
+        self.weight.is_empty()
+    }
+
+    /// Largest Mie series length `N` over the nodes: the averaged matrix is a
+    /// polynomial of degree `≤ 2N` in `μ`.
+    pub fn n_terms_max(&self) -> usize {
+        self.size_parameter
+            .last()
+            .map_or(0, |&x| mie::series_length(x))
+    }
+
+    /// The averaged normalised scattering matrix of the rule at the cosines
+    /// `mu`, `c Σ W_i [products_i(μ)]` with `c = 4π/(k² Σ W_i C_sca,i)`
+    /// (module doc), so that `½∫a1 dμ = 1` to rounding.
+    pub fn matrix(&self, mu: &[f64]) -> Result<ScatteringMatrixSamples, PhysicsError> {
+        use rayon::prelude::*;
+        let n = self.len();
+        let chunk = n.div_ceil(RULE_CHUNKS).max(1);
+        let idx: Vec<usize> = (0..n).collect();
+        let blocks: Vec<(f64, Vec<[f64; 4]>)> = idx
+            .par_chunks(chunk)
+            .map(|block| {
+                let mut c_sca = 0.0;
+                let mut acc = vec![[0.0; 4]; mu.len()];
+                for &i in block {
+                    let (x, w) = (self.size_parameter[i], self.weight[i]);
+                    let r = x / self.k;
+                    let sphere = MieResult::from_size_parameter(x, self.m)?;
+                    c_sca += w * PI * r * r * sphere.qsca;
+                    for (a, q) in acc.iter_mut().zip(sphere.amplitude_products(mu)?) {
+                        for j in 0..4 {
+                            a[j] += w * q[j];
+                        }
+                    }
+                }
+                Ok((c_sca, acc))
+            })
+            .collect::<Result<_, PhysicsError>>()?;
+        let mut c_sca = 0.0;
+        let mut p = vec![[0.0; 4]; mu.len()];
+        for (c, acc) in &blocks {
+            c_sca += c;
+            for (a, q) in p.iter_mut().zip(acc) {
+                for j in 0..4 {
+                    a[j] += q[j];
+                }
+            }
+        }
+        let c = 4.0 * PI / (self.k * self.k * c_sca);
+        Ok(mie::matrix_from_products(mu, &p, c))
+    }
+}
+
+/// Smallest radius accepted as an explicit integration limit, µm.
+pub const RADIUS_LIMIT_MIN_UM: f64 = 1e-6;
+/// Largest radius accepted as an explicit integration limit, µm.
+pub const RADIUS_LIMIT_MAX_UM: f64 = 1e4;
+
+/// The limits `[r_min, r_max]` (µm) of the radius integral of `dist` at `k`
+/// size parameter per µm: `quad.radius_range_um` when given (validated:
+/// `RADIUS_LIMIT_MIN_UM ≤ r_min < r_max ≤ RADIUS_LIMIT_MAX_UM`), else the
+/// tail-fraction cuts of the module doc.
+pub fn radius_limits_um(
+    dist: &SizeDistribution,
+    k_per_um: f64,
+    quad: &PsdQuadrature,
+) -> Result<[f64; 2], PhysicsError> {
+    let range = format!("[{RADIUS_LIMIT_MIN_UM:e}, {RADIUS_LIMIT_MAX_UM:e}] µm");
+    match quad.radius_range_um {
+        Some([lo, hi]) => {
+            let ok =
+                |v: f64| v.is_finite() && (RADIUS_LIMIT_MIN_UM..=RADIUS_LIMIT_MAX_UM).contains(&v);
+            if !ok(lo) {
+                return Err(out_of_range("radius_min_um", lo, range));
+            }
+            if !ok(hi) {
+                return Err(out_of_range("radius_max_um", hi, range));
+            }
+            if lo >= hi {
+                return Err(out_of_range(
+                    "radius_max_um",
+                    hi,
+                    format!("({lo:e}, {RADIUS_LIMIT_MAX_UM:e}] µm (above radius_min_um)"),
+                ));
+            }
+            Ok([lo, hi])
+        }
+        None => {
+            let eps = quad.tail_fraction;
+            Ok([
+                dist.weighted_quantile(2.0, eps, true),
+                dist.upper_cut_um(k_per_um, eps),
+            ])
+        }
+    }
 }
 
 fn out_of_range(name: &'static str, value: f64, range: String) -> PhysicsError {
@@ -298,6 +455,8 @@ struct Integrator<'a> {
     err: Vec<f64>,
     /// Panels accepted at `MAX_DEPTH` without meeting the tolerance.
     unresolved: usize,
+    /// Accepted panels `[a, b]` in `u` of the last pass.
+    panels: Vec<(f64, f64)>,
 }
 
 impl<'a> Integrator<'a> {
@@ -327,9 +486,7 @@ impl<'a> Integrator<'a> {
         }
         // k: size parameter per µm of radius.
         let (k, m) = mie::wavenumber_and_index(particle, n_host, wavelength_nm)?;
-        let eps = quad.tail_fraction;
-        let r_min = dist.weighted_quantile(2.0, eps, true);
-        let r_max = dist.upper_cut_um(k, eps);
+        let [r_min, r_max] = radius_limits_um(dist, k, quad)?;
         let (x_min, x_max) = (k * r_min, k * r_max);
         let range = |r: &str, v: f64| {
             format!(
@@ -371,6 +528,7 @@ impl<'a> Integrator<'a> {
             evals: 0,
             err: vec![0.0; n],
             unresolved: 0,
+            panels: Vec::new(),
         })
     }
 
@@ -399,6 +557,52 @@ impl<'a> Integrator<'a> {
         t.exp()
     }
 
+    /// `n(r) dr/du` at `u` and the radius there.
+    fn jacobian(&self, u: f64) -> (f64, f64) {
+        let r = self.radius(u);
+        (
+            self.dist.number_density(r) * r / (1.0 + self.k * r / U_X_SCALE),
+            r,
+        )
+    }
+
+    /// The accepted panels of the last pass as a fixed [`RadiusRule`]
+    /// (Boole's rule per panel, nodes shared by neighbours merged).
+    fn rule(&self) -> RadiusRule {
+        const BOOLE: [f64; 5] = [7.0, 32.0, 12.0, 32.0, 7.0];
+        let mut nodes: Vec<(f64, f64)> = Vec::with_capacity(4 * self.panels.len() + 1);
+        for &(a, b) in &self.panels {
+            let m = 0.5 * (a + b);
+            for (u, c) in [a, 0.5 * (a + m), m, 0.5 * (m + b), b]
+                .into_iter()
+                .zip(BOOLE)
+            {
+                nodes.push((u, c * (b - a) / 90.0));
+            }
+        }
+        nodes.sort_by(|p, q| p.0.total_cmp(&q.0));
+        let mut merged: Vec<(f64, f64)> = Vec::with_capacity(nodes.len());
+        for (u, w) in nodes {
+            match merged.last_mut() {
+                Some(last) if last.0 == u => last.1 += w,
+                _ => merged.push((u, w)),
+            }
+        }
+        let (mut size_parameter, mut weight) = (Vec::new(), Vec::new());
+        for (u, w) in merged {
+            let (jac, r) = self.jacobian(u);
+            size_parameter
+                .push((self.k * r).clamp(mie::SIZE_PARAMETER_MIN, mie::SIZE_PARAMETER_MAX));
+            weight.push(w * jac);
+        }
+        RadiusRule {
+            m: self.m,
+            k: self.k,
+            size_parameter,
+            weight,
+        }
+    }
+
     /// Integrand at `u`: `n(r) dr/du · [C…, products…]`.
     fn eval(&mut self, u: f64) -> Result<Vec<f64>, PhysicsError> {
         self.evals += 1;
@@ -411,9 +615,8 @@ impl<'a> Integrator<'a> {
                 self.k * self.r_max
             )));
         }
-        let r = self.radius(u);
+        let (w, r) = self.jacobian(u);
         let x = (self.k * r).clamp(mie::SIZE_PARAMETER_MIN, mie::SIZE_PARAMETER_MAX);
-        let w = self.dist.number_density(r) * r / (1.0 + self.k * r / U_X_SCALE);
         let sphere = MieResult::from_size_parameter(x, self.m)?;
         let geo = PI * r * r * w;
         let mut out = Vec::with_capacity(self.scale.len());
@@ -487,12 +690,14 @@ impl<'a> Integrator<'a> {
             self.share_floor = (-(floor_depth as f64)).exp2() / panels as f64;
             self.err.fill(0.0);
             self.unresolved = 0;
+            self.panels.clear();
             let mut total = vec![0.0; self.scale.len()];
             for (p, whole) in wholes.iter().enumerate() {
                 let a = self.u_min + h * p as f64;
+                // `b` is the next panel's `a` exactly, so the rule merges them.
                 let part = self.adapt(
                     a,
-                    a + h,
+                    self.u_min + h * (p + 1) as f64,
                     [&f[2 * p], &f[2 * p + 1], &f[2 * p + 2]],
                     whole,
                     0,
@@ -545,6 +750,7 @@ impl<'a> Integrator<'a> {
             if !ok {
                 self.unresolved += 1;
             }
+            self.panels.push((a, b));
             let out: Vec<f64> = (0..n)
                 .map(|j| {
                     let d = left[j] + right[j] - whole[j];

@@ -137,6 +137,13 @@ pub enum SizeDistributionSpec {
         r_g_um: f64,
         /// Geometric standard deviation (> 1).
         sigma_g: f64,
+        /// Explicit lower limit of the radius integral (µm); with
+        /// `radius_max_um`, replaces the tail cuts of `physics::psd`.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        radius_min_um: Option<f64>,
+        /// Explicit upper limit of the radius integral (µm).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        radius_max_um: Option<f64>,
     },
     /// Gamma distribution (Hansen & Travis 1974).
     Gamma {
@@ -144,7 +151,31 @@ pub enum SizeDistributionSpec {
         r_eff_um: f64,
         /// Effective variance (> 0, < 0.5).
         v_eff: f64,
+        /// Explicit lower limit of the radius integral (µm); see `Lognormal`.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        radius_min_um: Option<f64>,
+        /// Explicit upper limit of the radius integral (µm).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        radius_max_um: Option<f64>,
     },
+}
+
+impl SizeDistributionSpec {
+    /// The explicit integration limits `(radius_min_um, radius_max_um)`.
+    pub fn radius_limits_um(&self) -> (Option<f64>, Option<f64>) {
+        match *self {
+            Self::Lognormal {
+                radius_min_um,
+                radius_max_um,
+                ..
+            }
+            | Self::Gamma {
+                radius_min_um,
+                radius_max_um,
+                ..
+            } => (radius_min_um, radius_max_um),
+        }
+    }
 }
 
 /// Explicit expansion coefficients.
@@ -324,8 +355,16 @@ pub fn validate(spec: &Spec) -> Result<(), SpecError> {
                     (Some(r), None) => {
                         finite_in(&format!("{mp}.radius_um"), *r, 1e-6, 1e4, "[1e-6, 1e4] µm")?
                     }
-                    (None, Some(SizeDistributionSpec::Lognormal { r_g_um, sigma_g })) => {
+                    (
+                        None,
+                        Some(
+                            d @ SizeDistributionSpec::Lognormal {
+                                r_g_um, sigma_g, ..
+                            },
+                        ),
+                    ) => {
                         let q = format!("{mp}.size_distribution.lognormal");
+                        validate_radius_limits(&q, d)?;
                         finite_in(&format!("{q}.r_g_um"), *r_g_um, 1e-6, 1e4, "[1e-6, 1e4] µm")?;
                         finite_in(
                             &format!("{q}.sigma_g"),
@@ -335,8 +374,16 @@ pub fn validate(spec: &Spec) -> Result<(), SpecError> {
                             "[1.0001, 5]",
                         )?;
                     }
-                    (None, Some(SizeDistributionSpec::Gamma { r_eff_um, v_eff })) => {
+                    (
+                        None,
+                        Some(
+                            d @ SizeDistributionSpec::Gamma {
+                                r_eff_um, v_eff, ..
+                            },
+                        ),
+                    ) => {
                         let q = format!("{mp}.size_distribution.gamma");
+                        validate_radius_limits(&q, d)?;
                         finite_in(
                             &format!("{q}.r_eff_um"),
                             *r_eff_um,
@@ -589,24 +636,83 @@ fn mie_optics(
     let wl =
         wavelength_nm.ok_or_else(|| SpecError::new("wavelengths_nm", "required for Mie layers"))?;
     let index = resolve_index(&format!("{path}.material"), &m.material, Some(wl))?;
-    crate::physics::mie_expansion(
-        index,
-        m.host_index,
-        wl,
-        m.radius_um,
-        m.size_distribution.as_ref().map(to_psd),
-    )
-    .map_err(|e| SpecError::new(path, e.to_string()))
+    let optics = match &m.size_distribution {
+        Some(d) => crate::physics::mie_optics_distribution(
+            index,
+            m.host_index,
+            wl,
+            &to_psd(d),
+            &psd_quadrature(d),
+            None,
+        ),
+        None => crate::physics::mie_optics(index, m.host_index, wl, m.radius_um, None, None),
+    };
+    optics
+        .map(|o| (o.albedo, o.coefficients))
+        .map_err(|e| SpecError::new(path, e.to_string()))
+}
+
+/// `radius_min_um` / `radius_max_um` of a size distribution: both or
+/// neither, each in `[1e-6, 1e4]` µm, `min < max`.
+fn validate_radius_limits(q: &str, d: &SizeDistributionSpec) -> Result<(), SpecError> {
+    match d.radius_limits_um() {
+        (None, None) => Ok(()),
+        (Some(lo), Some(hi)) => {
+            finite_in(
+                &format!("{q}.radius_min_um"),
+                lo,
+                1e-6,
+                1e4,
+                "[1e-6, 1e4] µm",
+            )?;
+            finite_in(
+                &format!("{q}.radius_max_um"),
+                hi,
+                1e-6,
+                1e4,
+                "[1e-6, 1e4] µm",
+            )?;
+            if lo < hi {
+                Ok(())
+            } else {
+                Err(SpecError::new(
+                    format!("{q}.radius_max_um"),
+                    format!("must be greater than radius_min_um = {lo}"),
+                ))
+            }
+        }
+        (Some(_), None) => Err(SpecError::new(
+            format!("{q}.radius_max_um"),
+            "missing field: radius_min_um requires radius_max_um",
+        )),
+        (None, Some(_)) => Err(SpecError::new(
+            format!("{q}.radius_min_um"),
+            "missing field: radius_max_um requires radius_min_um",
+        )),
+    }
+}
+
+/// Quadrature settings of a size distribution: the defaults, with the
+/// explicit integration limits when given.
+fn psd_quadrature(d: &SizeDistributionSpec) -> crate::physics::psd::PsdQuadrature {
+    let radius_range_um = match d.radius_limits_um() {
+        (Some(lo), Some(hi)) => Some([lo, hi]),
+        _ => None,
+    };
+    crate::physics::psd::PsdQuadrature {
+        radius_range_um,
+        ..Default::default()
+    }
 }
 
 fn to_psd(s: &SizeDistributionSpec) -> crate::physics::psd::SizeDistribution {
     match *s {
-        SizeDistributionSpec::Lognormal { r_g_um, sigma_g } => {
-            crate::physics::psd::SizeDistribution::LogNormal { r_g_um, sigma_g }
-        }
-        SizeDistributionSpec::Gamma { r_eff_um, v_eff } => {
-            crate::physics::psd::SizeDistribution::Gamma { r_eff_um, v_eff }
-        }
+        SizeDistributionSpec::Lognormal {
+            r_g_um, sigma_g, ..
+        } => crate::physics::psd::SizeDistribution::LogNormal { r_g_um, sigma_g },
+        SizeDistributionSpec::Gamma {
+            r_eff_um, v_eff, ..
+        } => crate::physics::psd::SizeDistribution::Gamma { r_eff_um, v_eff },
     }
 }
 
@@ -628,10 +734,13 @@ pub fn max_size_parameter(spec: &Spec) -> f64 {
             let k_per_um = 2.0 * std::f64::consts::PI * 1000.0 * m.host_index / lambda_min_nm;
             let r_um = match (&m.radius_um, &m.size_distribution) {
                 (Some(r), _) => *r,
-                (None, Some(d)) => to_psd(d).upper_cut_um(
-                    k_per_um,
-                    crate::physics::psd::PsdQuadrature::default().tail_fraction,
-                ),
+                (None, Some(d)) => match d.radius_limits_um() {
+                    (_, Some(hi)) => hi,
+                    _ => to_psd(d).upper_cut_um(
+                        k_per_um,
+                        crate::physics::psd::PsdQuadrature::default().tail_fraction,
+                    ),
+                },
                 (None, None) => 0.0,
             };
             x_max = x_max.max(k_per_um * r_um);

@@ -412,3 +412,82 @@ fn siewert_sign_expansion_over_a_mirror_matches_jones_calculus() {
     assert!(coupling > 0.05, "coupling {coupling:e}");
     assert!(rel < 1e-5, "solver vs Jones calculus: {rel:e} of max f11");
 }
+
+/// A stack of a Siewert-sign `expansion` layer over a Mie layer over a
+/// Fresnel base: the expansion is an independent, published one, the
+/// Meerhoff Mie program's coefficients of a gamma distribution
+/// (tests/data/benchmarks/meerhoff_…json, de Rooij & van der Stap
+/// convention) converted to Siewert's by the published rule (negate `β_1`
+/// and `β_2`, conventions §4). The same stack with that layer given as the
+/// size distribution it came from (`mie` with `size_distribution`) must give
+/// the same BRDF. With `ε` read in the wrong sign the U/V ↔ I/Q elements
+/// differ by O(f11) over the metal.
+#[test]
+fn siewert_expansion_over_mie_over_fresnel_is_the_mie_stack() {
+    let b = common::benchmark("meerhoff_pymiedap_gamma_reff1p05_veff0p07_lam1p1_m1p44.json");
+    let c = &b["coefficients"];
+    let series = |name: &str, sign: f64| -> Vec<f64> {
+        c[name]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| sign * v.as_str().unwrap().trim().parse::<f64>().unwrap())
+            .collect()
+    };
+    let albedo: f64 = b["inputs"]["as_printed"]["single_scattering_albedo"]
+        .as_str()
+        .unwrap()
+        .parse()
+        .unwrap();
+    let expansion = json!({"expansion": {
+        "albedo": albedo,
+        "beta": series("alpha1", 1.0),
+        "alpha": series("alpha2", 1.0),
+        "zeta": series("alpha3", 1.0),
+        "delta": series("alpha4", 1.0),
+        "gamma": series("beta1", -1.0),
+        "epsilon": series("beta2", -1.0),
+    }});
+    let distribution = json!({"mie": {
+        "material": {"n": 1.44, "k": 0.0},
+        "size_distribution": {"gamma": {"r_eff_um": 1.05, "v_eff": 0.07,
+                                          "radius_min_um": 0.0616236, "radius_max_um": 3.3845421}}
+    }});
+    let sphere = json!({"mie": {"material": {"n": SPHERE.n, "k": SPHERE.k}, "radius_um": 0.44}});
+    let stack = |top: &Value| {
+        json!({
+            "layers": [
+                {"optical_thickness": 0.3, "scatterer": top},
+                {"optical_thickness": 0.5, "scatterer": sphere}
+            ],
+            "base": {"fresnel": {"material": {"n": SILVER_LIKE.n, "k": SILVER_LIKE.k}}},
+            "wavelengths_nm": [1100],
+            "solver": {"streams": 16}
+        })
+    };
+    let a = solve_points(&stack(&expansion));
+    let b = solve_points(&stack(&distribution));
+    let (mut worst, mut f11, mut coupling) = (0.0f64, 0.0f64, 0.0f64);
+    for (ma, mb) in a.iter().zip(&b) {
+        f11 = f11.max(mb[0][0].abs());
+        for i in 0..4 {
+            for j in 0..4 {
+                worst = worst.max((ma[i][j] - mb[i][j]).abs());
+                if (i < 2) != (j < 2) {
+                    coupling = coupling.max(mb[i][j].abs());
+                }
+            }
+        }
+    }
+    eprintln!(
+        "expansion stack vs Mie stack: {:e} of max f11, coupling {:e}",
+        worst / f11,
+        coupling / f11
+    );
+    assert!(coupling / f11 > 0.05, "coupling {coupling:e}");
+    assert!(
+        worst / f11 < 1e-5,
+        "expansion stack vs Mie stack: {:e} of max f11",
+        worst / f11
+    );
+}

@@ -12,7 +12,9 @@
 //! Specs: 1–4 layers, τ log-uniform in [1e-4, 50] or 0, the last one sometimes
 //! `"infinite"`; scatterers Rayleigh (depolarization ≤ 0.1), Henyey–Greenstein
 //! (g ∈ [−0.9, 0.95]), the Garcia–Siewert expansion, Mie spheres
-//! (n ∈ [1.2, 3], k ∈ [0, 3], r ∈ [0.05, 0.5] µm at 550 nm); albedos in
+//! (n ∈ [1.2, 3], k ∈ [0, 3], r ∈ [0.05, 0.5] µm at 550 nm), size
+//! distributions of them (lognormal r_g ∈ [0.05, 0.3] µm, σ_g ∈ [1.05, 2]; gamma
+//! r_eff ∈ [0.05, 0.3] µm, v_eff ∈ [0.01, 0.3]; k ∈ [0, 1]); albedos in
 //! [0, 1] (sometimes exactly 0 or 1); bases black, Lambertian [0, 1], Fresnel
 //! {n, k}; 4–12 streams.
 //!
@@ -47,10 +49,30 @@ enum Tau {
 
 #[derive(Clone, Debug)]
 enum Scatterer {
-    Rayleigh { albedo: f64, depolarization: f64 },
-    HenyeyGreenstein { albedo: f64, g: f64 },
-    GarciaSiewert { albedo: f64 },
-    Mie { n: f64, k: f64, radius_um: f64 },
+    Rayleigh {
+        albedo: f64,
+        depolarization: f64,
+    },
+    HenyeyGreenstein {
+        albedo: f64,
+        g: f64,
+    },
+    GarciaSiewert {
+        albedo: f64,
+    },
+    Mie {
+        n: f64,
+        k: f64,
+        radius_um: f64,
+    },
+    /// `lognormal` (`spread` = σ_g) or `gamma` (`spread` = v_eff).
+    MieDistribution {
+        n: f64,
+        k: f64,
+        lognormal: bool,
+        size_um: f64,
+        spread: f64,
+    },
 }
 
 #[derive(Clone, Debug)]
@@ -97,6 +119,25 @@ fn scatterer() -> impl Strategy<Value = Scatterer> {
             0.05..=0.5f64
         )
             .prop_map(|(n, k, radius_um)| Scatterer::Mie { n, k, radius_um }),
+        (
+            1.2..=3.0f64,
+            prop_oneof![1 => Just(0.0), 3 => 0.0..=1.0f64],
+            any::<bool>(),
+            0.05..=0.3f64,
+            0.0..=1.0f64,
+        )
+            .prop_map(|(n, k, lognormal, size_um, u)| Scatterer::MieDistribution {
+                n,
+                k,
+                lognormal,
+                size_um,
+                // σ_g in [1.05, 2.0], v_eff in [0.01, 0.3]
+                spread: if lognormal {
+                    1.05 + 0.95 * u
+                } else {
+                    0.01 + 0.29 * u
+                },
+            }),
     ]
 }
 
@@ -150,6 +191,20 @@ fn to_json(c: &Case) -> Value {
                     "delta": gs.delta, "gamma": gs.gamma, "epsilon": gs.epsilon}}),
                 Scatterer::Mie { n, k, radius_um } => json!({"mie": {
                     "material": {"n": n, "k": k}, "radius_um": radius_um}}),
+                Scatterer::MieDistribution {
+                    n,
+                    k,
+                    lognormal,
+                    size_um,
+                    spread,
+                } => {
+                    let d = if lognormal {
+                        json!({"lognormal": {"r_g_um": size_um, "sigma_g": spread}})
+                    } else {
+                        json!({"gamma": {"r_eff_um": size_um, "v_eff": spread}})
+                    };
+                    json!({"mie": {"material": {"n": n, "k": k}, "size_distribution": d}})
+                }
             };
             json!({"optical_thickness": tau, "scatterer": scatterer})
         })

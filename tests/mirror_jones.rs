@@ -69,7 +69,11 @@ fn real(a: V3) -> CV3 {
 fn ray(vartheta: f64, varphi: f64) -> (V3, V3, V3) {
     let (st, ct) = vartheta.sin_cos();
     let (sp, cp) = varphi.sin_cos();
-    ([st * cp, st * sp, ct], [ct * cp, ct * sp, -st], [-sp, cp, 0.0])
+    (
+        [st * cp, st * sp, ct],
+        [ct * cp, ct * sp, -st],
+        [-sp, cp, 0.0],
+    )
 }
 
 /// A ray: propagation direction and its Stokes frame.
@@ -120,8 +124,8 @@ fn solve4(mut a: [[C; 4]; 4], mut b: [C; 4]) -> [C; 4] {
         b.swap(col, p);
         for r in col + 1..4 {
             let f = a[r][col] / a[col][col];
-            for k in col..4 {
-                let v = a[col][k];
+            let pivot = a[col];
+            for (k, v) in pivot.iter().enumerate().skip(col) {
                 a[r][k] -= f * v;
             }
             let v = b[col];
@@ -163,7 +167,11 @@ fn reflect(e: CV3, down: Ray, n2: C) -> CV3 {
     let mut a = [[C::from(0.0); 4]; 4];
     for (j, f) in unknowns.iter().enumerate() {
         let sign = if j < 2 { 1.0 } else { -1.0 };
-        let h = if j < 2 { ccross(real(up.k), *f) } else { ccross(kt, *f) };
+        let h = if j < 2 {
+            ccross(real(up.k), *f)
+        } else {
+            ccross(kt, *f)
+        };
         a[0][j] = f[0] * sign;
         a[1][j] = f[1] * sign;
         a[2][j] = h[0] * sign;
@@ -231,7 +239,13 @@ fn jones_brdf_per_tau(
         &|e| scatter(e, inc, out, mie, c),
         &|e| reflect(scatter(e, inc, out_down, mie, c), out_down, n2),
         &|e| scatter(reflect(e, inc, n2), inc_up, out, mie, c),
-        &|e| reflect(scatter(reflect(e, inc, n2), inc_up, out_down, mie, c), out_down, n2),
+        &|e| {
+            reflect(
+                scatter(reflect(e, inc, n2), inc_up, out_down, mie, c),
+                out_down,
+                n2,
+            )
+        },
     ];
     let (mu, mu0) = (to.cos(), ti.cos());
     let k = mie.albedo / (4.0 * pi * mu * mu0);
@@ -331,7 +345,10 @@ fn compare(layer_scatterer: Value, mie: &MieResult, metal: RefractiveIndex) -> (
         rows.push((pt, want, got));
     }
     let rel = worst / f11_max;
-    eprintln!("solver vs Jones: {rel:e} of max f11, U/V-IQ coupling {:e}", coupling / f11_max);
+    eprintln!(
+        "solver vs Jones: {rel:e} of max f11, U/V-IQ coupling {:e}",
+        coupling / f11_max
+    );
     if rel > 1e-5 {
         for (pt, want, got) in &rows {
             eprintln!("{pt:?}\n  jones  {want:?}\n  solver {got:?}");
@@ -354,9 +371,13 @@ fn sphere() -> MieResult {
 /// frames) against the Jones computation.
 #[test]
 fn mie_layer_over_a_mirror_matches_jones_calculus() {
-    let scatterer = json!({"mie": {"material": {"n": SPHERE.n, "k": SPHERE.k}, "radius_um": RADIUS_UM}});
+    let scatterer =
+        json!({"mie": {"material": {"n": SPHERE.n, "k": SPHERE.k}, "radius_um": RADIUS_UM}});
     let (rel, coupling) = compare(scatterer, &sphere(), SILVER_LIKE);
-    assert!(coupling > 0.05, "the U/V <-> I/Q coupling checked is {coupling:e} of f11");
+    assert!(
+        coupling > 0.05,
+        "the U/V <-> I/Q coupling checked is {coupling:e} of f11"
+    );
     assert!(rel < 1e-5, "solver vs Jones calculus: {rel:e} of max f11");
 }
 

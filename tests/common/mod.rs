@@ -7,7 +7,10 @@ use serde_json::Value;
 
 /// Parse a vendored benchmark file from `tests/data/benchmarks`.
 pub fn benchmark(name: &str) -> Value {
-    let path = format!("{}/tests/data/benchmarks/{name}", env!("CARGO_MANIFEST_DIR"));
+    let path = format!(
+        "{}/tests/data/benchmarks/{name}",
+        env!("CARGO_MANIFEST_DIR")
+    );
     let text = std::fs::read_to_string(&path)
         .unwrap_or_else(|e| panic!("benchmark file {path} is required by this test: {e}"));
     serde_json::from_str(&text).expect("benchmark JSON")

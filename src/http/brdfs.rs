@@ -288,6 +288,8 @@ pub async fn create_brdf(
     })?;
     let spec = spec::parse(text).map_err(ApiError::InvalidSpec)?;
     check_limits(&spec, &state.0.config.limits)?;
+    spec::check_solvable(&spec, state.0.config.limits.max_streams)
+        .map_err(ApiError::InvalidSpec)?;
     let (canonical_json, id) = canonical::id(&spec);
     tracing::debug!(%id, "submission");
     match state.0.jobs.submit(&spec, &canonical_json, &id).await? {

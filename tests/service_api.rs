@@ -576,6 +576,183 @@ async fn trailing_data_after_the_json_document_is_refused() {
     );
 }
 
+/// The smaller edges of the API: the cache listing, one-key scatterers,
+/// non-object specs, unparsable numbers, table-query errors, 405s.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn listing_and_error_edges() {
+    let dir = TempDir::new("edges");
+    let s = Server::start(&dir.0.join("data"), &[], &[]);
+    let c = client();
+
+    // Three jobs, submitted in this order (a few ms apart: created_at is in ms).
+    let mut ids = Vec::new();
+    for albedo in [0.1, 0.2, 0.3] {
+        let spec = TINY.replace("0.9", &albedo.to_string());
+        let (code, v, _) = post(&c, &s, &spec).await;
+        assert_eq!(code, 202, "{v}");
+        ids.push(v["id"].as_str().unwrap().to_string());
+        tokio::time::sleep(std::time::Duration::from_millis(5)).await;
+    }
+    for id in &ids {
+        wait_done(&c, &s, id).await;
+    }
+    let newest_first: Vec<String> = ids.iter().rev().cloned().collect();
+    let page_ids = |v: &Value| -> Vec<String> {
+        v["items"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|i| i["id"].as_str().unwrap().to_string())
+            .collect()
+    };
+    let (code, all) = get_json(&c, &s, "/v1/brdfs").await;
+    assert_eq!(code, 200, "{all}");
+    assert_eq!(page_ids(&all), newest_first);
+    assert!(all["next"].is_null(), "{all}");
+    let item = &all["items"][0];
+    let mut keys: Vec<&str> = item
+        .as_object()
+        .unwrap()
+        .keys()
+        .map(|k| k.as_str())
+        .collect();
+    keys.sort();
+    assert_eq!(
+        keys,
+        [
+            "created_at",
+            "error_estimate",
+            "id",
+            "status",
+            "updated_at",
+            "wavelengths"
+        ]
+    );
+    assert_eq!(item["status"], "done");
+    assert_eq!(item["wavelengths"], 1);
+    assert!(item["error_estimate"].as_f64().unwrap() > 0.0);
+    // Pages of two: the cursor continues where the first page ended.
+    let (code, first) = get_json(&c, &s, "/v1/brdfs?limit=2").await;
+    assert_eq!(code, 200, "{first}");
+    assert_eq!(page_ids(&first), newest_first[..2]);
+    let cursor = first["next"].as_str().expect("a next cursor").to_string();
+    let (code, second) = get_json(&c, &s, &format!("/v1/brdfs?limit=2&cursor={cursor}")).await;
+    assert_eq!(code, 200, "{second}");
+    assert_eq!(page_ids(&second), newest_first[2..]);
+    assert!(second["next"].is_null(), "{second}");
+    for (query, path) in [
+        ("limit=0", "limit"),
+        ("limit=501", "limit"),
+        ("limit=ten", "limit"),
+        ("cursor=nonsense", "cursor"),
+    ] {
+        let r = c
+            .get(s.url(&format!("/v1/brdfs?{query}")))
+            .send()
+            .await
+            .unwrap();
+        let (code, h) = (r.status().as_u16(), r.headers().clone());
+        let v: Value = r.json().await.unwrap();
+        assert_problem(code, &v, &h, 422);
+        assert_eq!(v["path"], path, "{query} -> {v}");
+    }
+    let (_, v) = get_json(&c, &s, "/v1/brdfs?limit=501").await;
+    assert!(v["detail"].as_str().unwrap().contains("[1, 500]"), "{v}");
+
+    // Spec errors that name the field and what is allowed.
+    let cases: Vec<(&str, &str, &str)> = vec![
+        (
+            r#"{"layers":[{"optical_thickness":1,"scatterer":{"rayleigh":{"albedo":1},"henyey_greenstein":{"albedo":1,"g":0.5}}}]}"#,
+            "layers[0].scatterer",
+            "layers[0].scatterer: exactly one of mie, expansion, rayleigh, henyey_greenstein",
+        ),
+        ("[]", "$", "the spec must be a JSON object"),
+        (
+            r#"{"layers":[{"optical_thickness":NaN,"scatterer":{"rayleigh":{"albedo":1}}}]}"#,
+            "layers[0].optical_thickness",
+            "[0, 1e12]",
+        ),
+        (
+            r#"{"layers":[{"optical_thickness":1,"scatterer":{"rayleigh":{"albedo":1e999}}}]}"#,
+            "layers[0].scatterer.rayleigh.albedo",
+            "[0, 1]",
+        ),
+    ];
+    for (body, path, fragment) in cases {
+        let (code, v, h) = post(&c, &s, body).await;
+        assert_problem(code, &v, &h, 422);
+        assert_eq!(v["path"], path, "{body} -> {v}");
+        assert!(
+            v["detail"].as_str().unwrap().contains(fragment),
+            "{body} -> {v}"
+        );
+    }
+
+    // A bad table format: its own problem type and title, the allowed formats.
+    let r = c
+        .get(s.url(&format!("/v1/brdfs/{}/table?format=xml", ids[0])))
+        .send()
+        .await
+        .unwrap();
+    let (code, h) = (r.status().as_u16(), r.headers().clone());
+    let v: Value = r.json().await.unwrap();
+    assert_problem(code, &v, &h, 422);
+    assert_eq!(v["title"], "Invalid table request", "{v}");
+    assert_eq!(v["type"], "/problems/invalid-table-query", "{v}");
+    assert_eq!(v["path"], "format", "{v}");
+    for f in ["binary", "npy", "json", "mitsuba"] {
+        assert!(v["detail"].as_str().unwrap().contains(f), "{v}");
+    }
+    let r = c
+        .get(s.url(&format!("/v1/brdfs/{}/table?colour=red", ids[0])))
+        .send()
+        .await
+        .unwrap();
+    let v: Value = r.json().await.unwrap();
+    assert_eq!(v["path"], "colour", "{v}");
+
+    // A known route with another method: 405 problem+json with Allow.
+    for (method, path, allowed) in [
+        (
+            reqwest::Method::DELETE,
+            "/v1/brdfs".to_string(),
+            vec!["GET", "POST"],
+        ),
+        (
+            reqwest::Method::PUT,
+            format!("/v1/brdfs/{}", ids[0]),
+            vec!["GET"],
+        ),
+        (
+            reqwest::Method::POST,
+            format!("/v1/brdfs/{}/table", ids[0]),
+            vec!["GET", "HEAD"],
+        ),
+        (reqwest::Method::POST, "/healthz".to_string(), vec!["GET"]),
+    ] {
+        let r = c
+            .request(method.clone(), s.url(&path))
+            .send()
+            .await
+            .unwrap();
+        let (code, h) = (r.status().as_u16(), r.headers().clone());
+        let v: Value = r.json().await.unwrap();
+        assert_problem(code, &v, &h, 405);
+        assert_eq!(v["type"], "/problems/method-not-allowed", "{v}");
+        let allow = h["allow"].to_str().unwrap().to_string();
+        for m in allowed {
+            assert!(
+                allow.split(',').any(|x| x.trim() == m),
+                "{method} {path}: Allow {allow}"
+            );
+        }
+        assert!(
+            !allow.split(',').any(|x| x.trim() == method.as_str()),
+            "{allow}"
+        );
+    }
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_tolerance_spec_reports_the_solver_error_estimate() {
     let dir = TempDir::new("tolerance");

@@ -204,3 +204,119 @@ fn mie_spec_gives_one_result_per_wavelength() {
         assert!(f[0][1].abs() <= f[0][0]);
     }
 }
+
+/// Run `polbrdf solve` on files with these contents; (exit code, stderr).
+fn solve_texts(spec: &str, points: Option<&str>, field: Option<&str>) -> (i32, String) {
+    let dir = common::scratch_dir("cli-solve-text");
+    let write = |name: &str, text: &str| {
+        let p = dir.join(name);
+        std::fs::write(&p, text).unwrap();
+        p.to_string_lossy().into_owned()
+    };
+    let mut args = vec!["solve".to_string(), write("spec.json", spec)];
+    if let Some(p) = points {
+        args.push("--points".into());
+        args.push(write("points.json", p));
+    }
+    if let Some(f) = field {
+        args.push("--field".into());
+        args.push(write("field.json", f));
+    }
+    let argv: Vec<&str> = args.iter().map(|s| s.as_str()).collect();
+    let (code, out, err) = run(&argv);
+    if code != 0 {
+        assert!(out.is_empty(), "{out}");
+        assert_eq!(err.trim().lines().count(), 1, "{err}");
+    }
+    (code, err)
+}
+
+const RAYLEIGH4: &str = r#"{"layers":[{"optical_thickness":1,"scatterer":{"rayleigh":{"albedo":0.9}}}],"solver":{"streams":4}}"#;
+
+/// Anything but whitespace after the JSON document of a spec, points or
+/// field file: exit 2, naming the file and where the trailing data starts.
+#[test]
+fn trailing_data_in_any_input_file_is_refused() {
+    let points = r#"{"points":[{"theta_i_deg":10,"phi_i_deg":0,"theta_o_deg":20,"phi_o_deg":30}]}"#;
+    let field = r#"{"mu0":0.5,"tau":[0],"mu":[0.5],"phi_deg":[0]}"#;
+    // (line, column) of the trailing text after `first` + " ", counted here.
+    let at = |first: &str| {
+        format!(
+            "trailing data after the JSON document at line 1 column {}",
+            first.len() + 2
+        )
+    };
+    let (code, err) = solve_texts(&format!("{RAYLEIGH4} xx"), None, None);
+    assert_eq!(code, 2);
+    assert!(
+        err.contains("spec.json") && err.contains(&at(RAYLEIGH4)),
+        "{err}"
+    );
+    let (code, err) = solve_texts(RAYLEIGH4, Some(&format!("{points} {{}}")), None);
+    assert_eq!(code, 2);
+    assert!(
+        err.contains("points.json") && err.contains(&at(points)),
+        "{err}"
+    );
+    let (code, err) = solve_texts(RAYLEIGH4, None, Some(&format!("{field} 1")));
+    assert_eq!(code, 2);
+    assert!(
+        err.contains("field.json") && err.contains(&at(field)),
+        "{err}"
+    );
+    // Trailing whitespace is fine.
+    let (code, err) = solve_texts(&format!("{RAYLEIGH4}\n\n "), Some(points), Some(field));
+    assert_eq!(code, 0, "{err}");
+}
+
+/// What the solver would refuse, and the spec alone decides, is refused
+/// before solving: exit 2, one line naming the field and what would work.
+#[test]
+fn solve_time_refusals_exit_2_before_solving() {
+    let hg = |g: f64, solver: &str| {
+        format!(
+            r#"{{"layers":[{{"optical_thickness":1,"scatterer":{{"henyey_greenstein":{{"albedo":1,"g":{g}}}}}}}],"solver":{solver}}}"#
+        )
+    };
+    // β_l = (2l+1) g^l with g = -0.995: |g|^l > 1e-4 up to l = 1837, so it
+    // needs 919 streams, more than the 512 a tolerance may pick.
+    let beta: Vec<String> = (0..2000)
+        .map(|l| format!("{}", (2 * l + 1) as f64 * (-0.995f64).powi(l)))
+        .collect();
+    let expansion = format!(
+        r#"{{"layers":[{{"optical_thickness":1,"scatterer":{{"expansion":{{"albedo":1,"beta":[{}]}}}}}}],"solver":{{"tolerance":1e-3}}}}"#,
+        beta.join(",")
+    );
+    let (lo, hi) = polbrdf::physics::materials::find("TiO2")
+        .unwrap()
+        .wavelength_range_nm();
+    let tio2 = format!(
+        r#"{{"layers":[{{"optical_thickness":1,"scatterer":{{"mie":{{"material":"TiO2","radius_um":0.2}}}}}}],"wavelengths_nm":[{}]}}"#,
+        hi + 100.0
+    );
+    for (spec, path, fragment) in [
+        (
+            hg(-0.8, "{}"),
+            "solver.streams",
+            "at least 21 streams".to_string(),
+        ),
+        (
+            expansion,
+            "solver.tolerance",
+            "at least 919 streams".to_string(),
+        ),
+        (tio2, "wavelengths_nm[0]", format!("[{lo}, {hi}] nm")),
+    ] {
+        let t0 = std::time::Instant::now();
+        let (code, err) = solve_texts(&spec, None, None);
+        assert_eq!(code, 2, "{err}");
+        assert!(err.contains(&format!("{path}: ")), "{path} not in {err}");
+        assert!(err.contains(&fragment), "{fragment} not in {err}");
+        assert!(
+            t0.elapsed().as_secs_f64() < 10.0,
+            "refused only after solving?"
+        );
+    }
+    let (code, err) = solve_texts(&hg(-0.8, r#"{"streams":21}"#), None, None);
+    assert_eq!(code, 0, "{err}");
+}

@@ -73,3 +73,30 @@ fn every_reference_resolves() {
         );
     }
 }
+
+/// The table route documents every media type it serves, and the cache
+/// listing is documented next to the submission.
+#[test]
+fn table_media_types_and_the_listing_are_documented() {
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/api/openapi.json");
+    let doc: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
+    let content = &doc["paths"]["/v1/brdfs/{id}/table"]["get"]["responses"]["200"]["content"];
+    for media in [
+        "application/vnd.polbrdf.table; version=4",
+        "application/x-npy",
+        "application/json",
+        "application/octet-stream",
+    ] {
+        assert!(content.get(media).is_some(), "{media} missing: {content}");
+    }
+    let list = &doc["paths"]["/v1/brdfs"]["get"];
+    assert!(list.is_object(), "GET /v1/brdfs missing");
+    let params: Vec<&str> = list["parameters"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|p| p["name"].as_str().unwrap())
+        .collect();
+    assert_eq!(params, ["limit", "cursor"]);
+}

@@ -104,9 +104,7 @@ fn write(path: &str, bytes: &[u8]) -> Result<(), String> {
 
 fn read_points(path: &str) -> Result<Vec<Directions>, String> {
     let text = std::fs::read_to_string(path).map_err(|e| format!("{path}: {e}"))?;
-    let de = &mut serde_json::Deserializer::from_str(&text);
-    let p: PointsFile = serde_path_to_error::deserialize(de)
-        .map_err(|e| format!("{path}: {}: {}", e.path(), e.inner()))?;
+    let p: PointsFile = spec::json::from_str(&text).map_err(|e| format!("{path}: {e}"))?;
     for (i, d) in p.points.iter().enumerate() {
         d.validate()
             .map_err(|e| format!("{path}: points[{i}].{e}"))?;

@@ -72,8 +72,7 @@ impl MuSet {
 
 fn read_json<T: for<'de> Deserialize<'de>>(path: &str) -> Result<T, String> {
     let text = std::fs::read_to_string(path).map_err(|e| format!("{path}: {e}"))?;
-    let de = &mut serde_json::Deserializer::from_str(&text);
-    serde_path_to_error::deserialize(de).map_err(|e| format!("{path}: {}: {}", e.path(), e.inner()))
+    spec::json::from_str(&text).map_err(|e| format!("{path}: {e}"))
 }
 
 fn check_angle(what: &str, v: f64, lo: f64, hi: f64) -> Result<(), String> {
@@ -92,6 +91,8 @@ pub fn run(
 ) -> Result<Value, String> {
     let text = std::fs::read_to_string(spec_path).map_err(|e| format!("{spec_path}: {e}"))?;
     let spec = spec::parse(&text).map_err(|e| format!("{spec_path}: {e}"))?;
+    // Refuse before solving what the solver would refuse (docs/spec.md).
+    spec::check_solvable(&spec, spec::MAX_STREAMS).map_err(|e| format!("{spec_path}: {e}"))?;
     let points: Vec<Point> = match points_path {
         Some(p) => read_json::<PointsFile>(p)?.points,
         None => Vec::new(),

@@ -288,6 +288,8 @@ pub async fn create_brdf(
     })?;
     let spec = spec::parse(text).map_err(ApiError::InvalidSpec)?;
     check_limits(&spec, &state.0.config.limits)?;
+    spec::check_solvable(&spec, state.0.config.limits.max_streams)
+        .map_err(ApiError::InvalidSpec)?;
     let (canonical_json, id) = canonical::id(&spec);
     tracing::debug!(%id, "submission");
     match state.0.jobs.submit(&spec, &canonical_json, &id).await? {
@@ -309,6 +311,137 @@ pub async fn create_brdf(
             Ok(res)
         }
     }
+}
+
+/// One entry of the cache listing.
+#[derive(Clone, Debug, Serialize, ToSchema)]
+pub struct BrdfSummary {
+    /// Spec id.
+    pub id: String,
+    /// Job state.
+    pub status: JobStatus,
+    /// RFC 3339.
+    pub created_at: String,
+    /// RFC 3339.
+    pub updated_at: String,
+    /// Number of wavelengths (solves) of the job.
+    pub wavelengths: i64,
+    /// Largest estimated relative error of f11 (`null` until done).
+    pub error_estimate: Option<f64>,
+}
+
+/// A page of the cache listing, newest first.
+#[derive(Clone, Debug, Serialize, ToSchema)]
+pub struct BrdfList {
+    /// The entries of this page.
+    pub items: Vec<BrdfSummary>,
+    /// Cursor of the next page (`?cursor=`), `null` on the last page.
+    pub next: Option<String>,
+}
+
+/// Query of `GET /v1/brdfs`.
+#[derive(Clone, Debug, Default, Deserialize, IntoParams)]
+#[serde(deny_unknown_fields)]
+#[into_params(parameter_in = Query)]
+pub struct ListQuery {
+    /// Entries per page, `[1, 500]` (default 50).
+    #[param(value_type = Option<u32>, minimum = 1, maximum = 500)]
+    pub limit: Option<String>,
+    /// The `next` of the previous page.
+    pub cursor: Option<String>,
+}
+
+/// Entries per page of `GET /v1/brdfs` unless `?limit=` says otherwise.
+pub const LIST_DEFAULT_LIMIT: usize = 50;
+/// Most entries per page.
+pub const LIST_MAX_LIMIT: usize = 500;
+
+/// The cursor after `row`: `<created_at ms>-<id>` (opaque to clients).
+fn cursor_of(row: &JobRow) -> String {
+    format!("{}-{}", row.created_at, row.id)
+}
+
+fn parse_cursor(c: &str) -> Option<(i64, &str)> {
+    let (at, id) = c.split_once('-')?;
+    Some((at.parse().ok()?, id)).filter(|(_, id)| canonical::is_id(id))
+}
+
+/// The cache: every job of the running version, newest first.
+///
+/// Pages of `limit` entries (default 50, at most 500); `next` is the
+/// cursor of the following page, `null` on the last one.
+#[utoipa::path(
+    get,
+    path = "/v1/brdfs",
+    tag = "brdfs",
+    params(ListQuery),
+    responses(
+        (status = 200, description = "A page of the cache, newest first", body = BrdfList),
+        (status = 401, description = "Token required for reads (--token-reads)", body = Problem, content_type = "application/problem+json"),
+        (status = 422, description = "`limit` outside [1, 500], a malformed `cursor` or an unknown parameter; `path` names it", body = Problem, content_type = "application/problem+json"),
+    ),
+    security((), ("bearer" = []))
+)]
+pub async fn list_brdfs(
+    State(state): State<AppState>,
+    query: Result<Query<ListQuery>, QueryRejection>,
+) -> Result<Response, ApiError> {
+    let invalid = |path: &str, message: String| ApiError::InvalidQuery {
+        path: path.into(),
+        message,
+    };
+    let Query(q) = query.map_err(|e| {
+        invalid(
+            "query",
+            format!("{}; allowed: limit, cursor", e.body_text()),
+        )
+    })?;
+    let limit = match q.limit.as_deref() {
+        None => LIST_DEFAULT_LIMIT,
+        Some(l) => l
+            .parse::<usize>()
+            .ok()
+            .filter(|n| (1..=LIST_MAX_LIMIT).contains(n))
+            .ok_or_else(|| {
+                invalid(
+                    "limit",
+                    format!(
+                        "'{l}' is outside the allowed range [1, {LIST_MAX_LIMIT}] (whole number)"
+                    ),
+                )
+            })?,
+    };
+    let after = match q.cursor.as_deref() {
+        None => None,
+        Some(c) => Some(parse_cursor(c).ok_or_else(|| {
+            invalid(
+                "cursor",
+                format!("'{c}' is not a cursor: give the `next` of the previous page"),
+            )
+        })?),
+    };
+    let mut rows = state.0.jobs.index().list(after, limit as i64 + 1).await?;
+    let next = if rows.len() > limit {
+        rows.truncate(limit);
+        rows.last().map(cursor_of)
+    } else {
+        None
+    };
+    let items = rows
+        .iter()
+        .map(|r| BrdfSummary {
+            id: r.id.clone(),
+            status: r.status.into(),
+            created_at: rfc3339(r.created_at),
+            updated_at: rfc3339(r.updated_at),
+            wavelengths: r.wavelengths,
+            error_estimate: r.error_estimate,
+        })
+        .collect();
+    let mut res = Json(BrdfList { items, next }).into_response();
+    res.headers_mut()
+        .insert(header::CACHE_CONTROL, HeaderValue::from_static("no-cache"));
+    Ok(res)
 }
 
 /// A result is served only from a done row: queued/running → not ready
@@ -396,6 +529,10 @@ fn none_match(headers: &HeaderMap, digest: &str) -> bool {
         .any(|t| t == "*" || t == digest)
 }
 
+/// Media type of `format=mitsuba` (a Mitsuba 3 tensor file has no
+/// registered type).
+pub const MITSUBA_MEDIA_TYPE: &str = "application/octet-stream";
+
 /// Immutable results: cacheable by any HTTP cache for a year.
 pub const IMMUTABLE: &str = "public, max-age=31536000, immutable";
 
@@ -448,6 +585,82 @@ pub struct TableQuery {
     pub resample_wavelengths: Option<bool>,
 }
 
+/// Bytes of a table response (the stored table, an npy array or a Mitsuba
+/// tensor file).
+#[derive(ToSchema)]
+#[schema(value_type = String, format = Binary)]
+pub struct TableBytes(pub Vec<u8>);
+
+/// Allowed parameters of `GET …/table`, for error messages.
+const TABLE_PARAMS: &str = "format=binary|npy|json|mitsuba, dtype=f32|f64 (npy), theta_count, phi_count (npy, json), resample_wavelengths=true|false (mitsuba)";
+
+/// The query of `GET …/table`, parameter by parameter, so that an error
+/// names the parameter and what it allows.
+fn table_query(pairs: Vec<(String, String)>) -> Result<TableQuery, ApiError> {
+    let bad = |path: &str, message: String| ApiError::InvalidTableQuery {
+        path: path.into(),
+        message,
+    };
+    let mut q = TableQuery::default();
+    let mut seen: Vec<String> = Vec::new();
+    for (k, v) in pairs {
+        if seen.contains(&k) {
+            return Err(bad(&k, "given more than once".into()));
+        }
+        seen.push(k.clone());
+        let count = |v: &str| {
+            v.parse::<usize>()
+                .map_err(|_| bad(&k, format!("'{v}' is not a whole number ≥ 0")))
+        };
+        match k.as_str() {
+            "format" => {
+                q.format = Some(match v.as_str() {
+                    "binary" => TableFormat::Binary,
+                    "npy" => TableFormat::Npy,
+                    "json" => TableFormat::Json,
+                    "mitsuba" => TableFormat::Mitsuba,
+                    _ => {
+                        return Err(bad(
+                            "format",
+                            format!(
+                                "'{v}' is not a table format: allowed binary, npy, json, mitsuba"
+                            ),
+                        ));
+                    }
+                })
+            }
+            "dtype" => {
+                q.dtype = Some(match v.as_str() {
+                    "f32" => DenseType::F32,
+                    "f64" => DenseType::F64,
+                    _ => return Err(bad("dtype", format!("'{v}' is not allowed: f32 or f64"))),
+                })
+            }
+            "theta_count" => q.theta_count = Some(count(&v)?),
+            "phi_count" => q.phi_count = Some(count(&v)?),
+            "resample_wavelengths" => {
+                q.resample_wavelengths = Some(match v.as_str() {
+                    "true" => true,
+                    "false" => false,
+                    _ => {
+                        return Err(bad(
+                            "resample_wavelengths",
+                            format!("'{v}' is not allowed: true or false"),
+                        ));
+                    }
+                })
+            }
+            _ => {
+                return Err(bad(
+                    &k,
+                    format!("unknown parameter; allowed: {TABLE_PARAMS}"),
+                ));
+            }
+        }
+    }
+    Ok(q)
+}
+
 /// Derived exports (npy, json, mitsuba) of recent requests, by result digest
 /// and query: a Mitsuba export takes seconds, so a render farm asking for the
 /// same file many times gets it computed once.
@@ -487,7 +700,7 @@ fn dense_bytes(
     max_values: usize,
 ) -> Result<(Vec<u8>, &'static str), ApiError> {
     use crate::brdf::export::{self, DenseGrid, NpyType};
-    let invalid = |path: &str, message: String| ApiError::InvalidQuery {
+    let invalid = |path: &str, message: String| ApiError::InvalidTableQuery {
         path: path.into(),
         message,
     };
@@ -506,7 +719,7 @@ fn dense_bytes(
             crate::brdf::BrdfError::Query(m) => invalid("resample_wavelengths", m),
             other => invalid("format", other.to_string()),
         })?;
-        return Ok((bytes, "application/octet-stream"));
+        return Ok((bytes, MITSUBA_MEDIA_TYPE));
     }
     if q.resample_wavelengths.is_some() {
         return Err(invalid(
@@ -586,7 +799,13 @@ fn dense_bytes(
         TableQuery,
     ),
     responses(
-        (status = 200, description = "The BRDF table (docs/table-format.md), Content-Type application/vnd.polbrdf.table; version=4; or with format=npy (application/x-npy) or format=json (application/json) a dense export; or with format=mitsuba a Mitsuba 3 measured_polarized tensor file (docs/mitsuba.md)",
+        (status = 200, description = "The BRDF table (docs/table-format.md), Content-Type application/vnd.polbrdf.table; version=4; or with format=npy (application/x-npy) or format=json (application/json) a dense export; or with format=mitsuba a Mitsuba 3 measured_polarized tensor file (docs/mitsuba.md), application/octet-stream",
+         content(
+             (TableBytes = "application/vnd.polbrdf.table; version=4"),
+             (TableBytes = "application/x-npy"),
+             (Object = "application/json"),
+             (TableBytes = "application/octet-stream"),
+         ),
          headers(("ETag" = String, description = "\"<sha256 of the bytes>\""),
                  ("Cache-Control" = String, description = "public, max-age=31536000, immutable"))),
         (status = 304, description = "The client's copy is current",
@@ -595,7 +814,7 @@ fn dense_bytes(
         (status = 404, description = "Unknown id", body = Problem, content_type = "application/problem+json"),
         (status = 409, description = "Not done yet (queued, running, or being solved again), or failed", body = Problem, content_type = "application/problem+json",
          headers(("Retry-After" = u64, description = "Seconds (not ready)"))),
-        (status = 422, description = "Unknown format or parameter, or a dense grid over --max-dense-values; `path` names the parameter", body = Problem, content_type = "application/problem+json"),
+        (status = 422, description = "Unknown format or parameter, or a dense grid over --max-dense-values (`invalid-table-query`); `path` names the parameter", body = Problem, content_type = "application/problem+json"),
     ),
     security((), ("bearer" = []))
 )]
@@ -603,15 +822,13 @@ pub async fn get_table(
     State(state): State<AppState>,
     Path(id): Path<String>,
     headers: HeaderMap,
-    query: Result<Query<TableQuery>, QueryRejection>,
+    query: Result<Query<Vec<(String, String)>>, QueryRejection>,
 ) -> Result<Response, ApiError> {
-    let Query(q) = query.map_err(|e| ApiError::InvalidQuery {
+    let Query(pairs) = query.map_err(|e| ApiError::InvalidTableQuery {
         path: "query".into(),
-        message: format!(
-            "{}; allowed: format=binary|npy|json|mitsuba, dtype=f32|f64 (npy), theta_count, phi_count (npy, json), resample_wavelengths=true|false (mitsuba)",
-            e.body_text()
-        ),
+        message: format!("{}; allowed: {TABLE_PARAMS}", e.body_text()),
     })?;
+    let q = table_query(pairs)?;
     let format = q.format.unwrap_or_default();
     if format != TableFormat::Binary {
         let (row, table) = super::eval::table_of(&state, &id).await?;
@@ -660,7 +877,7 @@ pub async fn get_table(
         || q.phi_count.is_some()
         || q.resample_wavelengths.is_some()
     {
-        return Err(ApiError::InvalidQuery {
+        return Err(ApiError::InvalidTableQuery {
             path: "format".into(),
             message: "dtype, theta_count, phi_count (npy, json) and resample_wavelengths (mitsuba) do not apply to the binary table".into(),
         });

@@ -25,6 +25,24 @@ pub enum ApiError {
         /// What is allowed.
         message: String,
     },
+    /// Invalid parameters of `GET …/table` (format, dtype, grid): 422.
+    #[error("{path}: {message}")]
+    InvalidTableQuery {
+        /// The parameter.
+        path: String,
+        /// What is allowed.
+        message: String,
+    },
+    /// The route exists but not for this method: 405 with `Allow`.
+    #[error("{method} is not allowed on {path}; allowed: {allow}")]
+    MethodNotAllowed {
+        /// The method asked for.
+        method: String,
+        /// The request path.
+        path: String,
+        /// The methods the route answers (the `Allow` header).
+        allow: String,
+    },
     /// The spec is valid but exceeds a service cap: 422.
     #[error("{path}: {message}")]
     LimitExceeded {
@@ -126,6 +144,19 @@ impl ApiError {
                 format!("{path}: {message}"),
             )
             .at(path.clone()),
+            ApiError::InvalidTableQuery { path, message } => Problem::new(
+                "invalid-table-query",
+                "Invalid table request",
+                422,
+                format!("{path}: {message}"),
+            )
+            .at(path.clone()),
+            ApiError::MethodNotAllowed { .. } => Problem::new(
+                "method-not-allowed",
+                "Method not allowed",
+                405,
+                self.to_string(),
+            ),
             ApiError::LimitExceeded { path, message } => Problem::new(
                 "limit-exceeded",
                 "Spec exceeds a service limit",
@@ -204,6 +235,12 @@ impl IntoResponse for ApiError {
             HeaderValue::from_static(problem::MEDIA_TYPE),
         );
         match self {
+            ApiError::MethodNotAllowed { allow, .. } => {
+                if let Ok(v) = HeaderValue::from_str(&allow) {
+                    // Replaces axum's (empty under route layers) header.
+                    h.insert(header::ALLOW, v);
+                }
+            }
             ApiError::QueueFull(_) | ApiError::ShuttingDown => {
                 h.insert(header::RETRY_AFTER, HeaderValue::from(RETRY_AFTER_SECS));
             }

@@ -308,14 +308,11 @@ pub async fn post_eval(
     body: Result<Bytes, BytesRejection>,
 ) -> Result<Response, ApiError> {
     let body = body.map_err(|e| ApiError::from_body(e, state.0.config.max_body_bytes))?;
-    let de = &mut serde_json::Deserializer::from_slice(&body);
-    let req: EvalRequest = serde_path_to_error::deserialize(de).map_err(|e| {
-        let path = e.path().to_string();
-        ApiError::InvalidQuery {
-            path: if path == "." { "$".into() } else { path },
-            message: e.inner().to_string(),
-        }
-    })?;
+    let req: EvalRequest =
+        crate::spec::json::from_slice(&body).map_err(|e| ApiError::InvalidQuery {
+            path: e.path,
+            message: e.message,
+        })?;
     if req.points.len() > state.0.config.limits.max_eval_points {
         return Err(ApiError::InvalidQuery {
             path: "points".into(),

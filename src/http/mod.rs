@@ -61,7 +61,7 @@ pub struct AppState(pub Arc<App>);
         license(name = "MIT OR Apache-2.0")
     ),
     modifiers(&BearerAuth),
-    components(schemas(crate::jobs::Problem, brdfs::TableFormat, brdfs::DenseType)),
+    components(schemas(crate::jobs::Problem, brdfs::TableFormat, brdfs::DenseType, brdfs::TableBytes)),
     tags(
         (name = "brdfs", description = "Submit specs, follow jobs, fetch results"),
         (name = "operations", description = "Health, readiness, metrics")
@@ -84,7 +84,7 @@ impl utoipa::Modify for BearerAuth {
 /// Every route of the service, with its OpenAPI description.
 pub fn routes() -> OpenApiRouter<AppState> {
     OpenApiRouter::with_openapi(ApiDoc::openapi())
-        .routes(api!(brdfs::create_brdf))
+        .routes(api!(brdfs::create_brdf, brdfs::list_brdfs))
         .routes(api!(brdfs::get_brdf))
         .routes(api!(brdfs::get_table))
         .routes(api!(eval::get_eval, eval::post_eval))
@@ -108,6 +108,10 @@ pub fn router(state: AppState) -> Router {
         .route_layer(middleware::from_fn_with_state(state.clone(), authorize))
         .route_layer(middleware::from_fn_with_state(state.clone(), track))
         .fallback(no_route)
+        .layer(middleware::from_fn_with_state(
+            Arc::new(allowed_methods()),
+            method_not_allowed,
+        ))
         .layer(DefaultBodyLimit::max(state.0.config.max_body_bytes))
         .layer(
             tower_http::trace::TraceLayer::new_for_http().make_span_with(|req: &Request| {
@@ -119,6 +123,76 @@ pub fn router(state: AppState) -> Router {
 
 async fn no_route(req: Request) -> ApiError {
     ApiError::NoRoute(format!("{} {}", req.method(), req.uri().path()))
+}
+
+/// Every route template (split into segments) with the methods it answers,
+/// from the same [`routes`] as the router (`GET` implies `HEAD`).
+type AllowTable = Vec<(Vec<String>, String)>;
+
+fn allowed_methods() -> AllowTable {
+    openapi()
+        .paths
+        .paths
+        .iter()
+        .map(|(path, item)| {
+            let mut methods = Vec::new();
+            for (m, op) in [
+                ("GET", &item.get),
+                ("HEAD", &item.head),
+                ("POST", &item.post),
+                ("PUT", &item.put),
+                ("PATCH", &item.patch),
+                ("DELETE", &item.delete),
+                ("OPTIONS", &item.options),
+            ] {
+                if op.is_some() {
+                    methods.push(m);
+                }
+            }
+            if item.get.is_some() && item.head.is_none() {
+                methods.insert(1, "HEAD");
+            }
+            let segments = path.split('/').map(str::to_string).collect();
+            (segments, methods.join(","))
+        })
+        .collect()
+}
+
+/// The methods of the route template matching `path` (`{x}` matches one
+/// segment).
+fn allow_of(table: &AllowTable, path: &str) -> Option<String> {
+    let segments: Vec<&str> = path.split('/').collect();
+    table.iter().find_map(|(template, allow)| {
+        let matches = template.len() == segments.len()
+            && template
+                .iter()
+                .zip(&segments)
+                .all(|(t, s)| t == s || (t.starts_with('{') && t.ends_with('}') && !s.is_empty()));
+        matches.then(|| allow.clone())
+    })
+}
+
+/// A known route asked with another method: axum answers 405 with an empty
+/// body; make it the problem+json of every other error, with `Allow`.
+async fn method_not_allowed(
+    State(table): State<Arc<AllowTable>>,
+    req: Request,
+    next: Next,
+) -> Response {
+    let (method, path) = (req.method().to_string(), req.uri().path().to_string());
+    let res = next.run(req).await;
+    if res.status() != axum::http::StatusCode::METHOD_NOT_ALLOWED
+        || res.headers().contains_key(header::CONTENT_TYPE)
+    {
+        return res;
+    }
+    let allow = allow_of(&table, &path).unwrap_or_default();
+    ApiError::MethodNotAllowed {
+        method,
+        path,
+        allow,
+    }
+    .into_response()
 }
 
 /// Count the request and its latency under its route template.

@@ -197,15 +197,7 @@ pub const MAX_BOUNCES: u32 = 16;
 /// Parse and validate a scene; errors name the JSON path
 /// (`lights[0].directional.stokes: …`).
 pub fn parse(text: &str) -> Result<SceneDesc, String> {
-    let de = &mut serde_json::Deserializer::from_str(text);
-    let scene: SceneDesc = serde_path_to_error::deserialize(de).map_err(|e| {
-        let path = e.path().to_string();
-        format!(
-            "{}: {}",
-            if path == "." { "$".into() } else { path },
-            e.inner()
-        )
-    })?;
+    let scene: SceneDesc = crate::spec::json::from_str(text).map_err(|e| e.to_string())?;
     validate(&scene)?;
     Ok(scene)
 }

@@ -3,6 +3,7 @@
 //! ranges, and conversion into solver problems, one per wavelength.
 
 pub mod canonical;
+pub mod json;
 
 use crate::physics::expansion::GreekCoefficients;
 use crate::physics::{RefractiveIndex, fresnel, materials};
@@ -21,7 +22,7 @@ pub struct SpecError {
 }
 
 impl SpecError {
-    fn new(path: impl Into<String>, message: impl Into<String>) -> Self {
+    pub(crate) fn new(path: impl Into<String>, message: impl Into<String>) -> Self {
         Self {
             path: path.into(),
             message: message.into(),
@@ -66,9 +67,11 @@ pub enum ThicknessSpec {
     Word(String),
 }
 
-/// The scatterer of a layer.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case", deny_unknown_fields)]
+/// The scatterer of a layer: an object with exactly one of the keys
+/// [`SCATTERERS`] (deserialized by hand so that a second key is named as
+/// such, not as a JSON syntax error).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+#[serde(rename_all = "snake_case")]
 pub enum ScattererSpec {
     /// Mie spheres.
     Mie(MieSpec),
@@ -89,6 +92,72 @@ pub enum ScattererSpec {
         /// Asymmetry parameter `g ∈ (−1, 1)`.
         g: f64,
     },
+}
+
+/// The keys of a `scatterer` object, one of which it must have.
+pub const SCATTERERS: [&str; 4] = ["mie", "expansion", "rayleigh", "henyey_greenstein"];
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RayleighFields {
+    albedo: f64,
+    #[serde(default)]
+    depolarization: f64,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct HenyeyGreensteinFields {
+    albedo: f64,
+    g: f64,
+}
+
+impl<'de> Deserialize<'de> for ScattererSpec {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        use serde::de::{Error, MapAccess, Visitor};
+        struct OneOf;
+        fn exactly_one<E: Error>(found: &str) -> E {
+            E::custom(format!(
+                "exactly one of {} ({found})",
+                SCATTERERS.join(", ")
+            ))
+        }
+        impl<'de> Visitor<'de> for OneOf {
+            type Value = ScattererSpec;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                write!(f, "an object with exactly one of {}", SCATTERERS.join(", "))
+            }
+            fn visit_map<A: MapAccess<'de>>(self, mut map: A) -> Result<ScattererSpec, A::Error> {
+                let Some(key) = map.next_key::<String>()? else {
+                    return Err(exactly_one("found none"));
+                };
+                let scatterer = match key.as_str() {
+                    "mie" => ScattererSpec::Mie(map.next_value()?),
+                    "expansion" => ScattererSpec::Expansion(map.next_value()?),
+                    "rayleigh" => {
+                        let r: RayleighFields = map.next_value()?;
+                        ScattererSpec::Rayleigh {
+                            albedo: r.albedo,
+                            depolarization: r.depolarization,
+                        }
+                    }
+                    "henyey_greenstein" => {
+                        let h: HenyeyGreensteinFields = map.next_value()?;
+                        ScattererSpec::HenyeyGreenstein {
+                            albedo: h.albedo,
+                            g: h.g,
+                        }
+                    }
+                    other => return Err(A::Error::unknown_variant(other, &SCATTERERS)),
+                };
+                if let Some(second) = map.next_key::<String>()? {
+                    return Err(exactly_one(&format!("found {key} and {second}")));
+                }
+                Ok(scatterer)
+            }
+        }
+        d.deserialize_map(OneOf)
+    }
 }
 
 /// A material given by name or by index.
@@ -275,18 +344,96 @@ impl Default for SolverSpec {
 /// Hard limits of the spec (the service adds its own, lower, caps).
 pub const MAX_STREAMS: usize = 512;
 
-/// Parse JSON text into a spec; errors carry the JSON path.
+/// Parse JSON text into a spec; errors carry the JSON path. Exactly one
+/// JSON document: trailing data is an error ([`json::from_str`]).
 pub fn parse(text: &str) -> Result<Spec, SpecError> {
-    let de = &mut serde_json::Deserializer::from_str(text);
-    let spec: Spec = serde_path_to_error::deserialize(de).map_err(|e| {
-        let path = e.path().to_string();
-        SpecError::new(
-            if path == "." { "$".into() } else { path },
-            e.inner().to_string(),
-        )
-    })?;
+    // serde accepts a struct written as an array too; a spec is an object.
+    if let Some(c) = text.trim_start().chars().next()
+        && c != '{'
+    {
+        return Err(SpecError::new("$", "the spec must be a JSON object"));
+    }
+    let spec: Spec = json::from_str(text).map_err(with_allowed_range)?;
     validate(&spec)?;
     Ok(spec)
+}
+
+// Allowed ranges, one text per field: `validate` reports them, and so does
+// a value that does not even parse there (`NaN`, `1e999`, a string).
+const R_THICKNESS: &str = "[0, 1e12] (or \"infinite\")";
+const R_UNIT: &str = "[0, 1]";
+const R_INDEX_REAL: &str = "[1, 10]";
+const R_RADIUS: &str = "[1e-6, 1e4] µm";
+const R_SIGMA_G: &str = "[1.0001, 5]";
+const R_V_EFF: &str = "[1e-4, 0.49]";
+const R_DEPOLARIZATION: &str = "[0, 0.99]";
+const R_G: &str = "[-0.999, 0.999]";
+const R_N: &str = "(0, 100]";
+const R_K: &str = "[0, 100]";
+const R_WAVELENGTH: &str = "[100, 100000] nm";
+const R_STREAMS: &str = "[1, 512] (integer)";
+const R_TOLERANCE: &str = "[1e-10, 0.5]";
+const R_COEFFICIENT: &str = "finite numbers with |x| ≤ 1e6";
+
+/// The allowed range of the numeric field at a JSON path, if it is one.
+fn allowed_range(path: &str) -> Option<&'static str> {
+    // `layers[3].scatterer…` → `layers[].scatterer…`
+    let mut p = String::with_capacity(path.len());
+    let mut in_index = false;
+    for c in path.chars() {
+        match c {
+            '[' => {
+                in_index = true;
+                p.push('[');
+            }
+            ']' => {
+                in_index = false;
+                p.push(']');
+            }
+            _ if in_index => {}
+            _ => p.push(c),
+        }
+    }
+    let p = p.as_str();
+    let tail = |suffix: &str| p.ends_with(suffix);
+    Some(match p {
+        "layers[].optical_thickness" => R_THICKNESS,
+        "wavelengths_nm[]" => R_WAVELENGTH,
+        "solver.streams" => R_STREAMS,
+        "solver.tolerance" => R_TOLERANCE,
+        "base.lambertian.albedo" => R_UNIT,
+        "base.fresnel.ambient_index" => R_INDEX_REAL,
+        _ if tail(".mie.host_index") => R_INDEX_REAL,
+        _ if tail(".mie.radius_um") || tail(".r_g_um") || tail(".r_eff_um") => R_RADIUS,
+        _ if tail(".sigma_g") => R_SIGMA_G,
+        _ if tail(".v_eff") => R_V_EFF,
+        _ if tail("material.n") => R_N,
+        _ if tail("material.k") => R_K,
+        _ if tail(".rayleigh.depolarization") => R_DEPOLARIZATION,
+        _ if tail(".henyey_greenstein.g") => R_G,
+        _ if tail(".albedo") => R_UNIT,
+        _ if p.starts_with("layers[].scatterer.expansion.") && tail("[]") => R_COEFFICIENT,
+        _ => return None,
+    })
+}
+
+/// A value that did not parse at a numeric field: name what is allowed
+/// there (`NaN`, `Infinity` and numbers beyond ±1.8e308 are not JSON numbers).
+fn with_allowed_range(e: SpecError) -> SpecError {
+    let Some(range) = allowed_range(&e.path) else {
+        return e;
+    };
+    let not_a_number =
+        e.message.starts_with("expected value") || e.message.starts_with("number out of range");
+    let message = if not_a_number {
+        format!(
+            "not a finite JSON number ({}; NaN, Infinity and numbers beyond ±1.8e308 are not JSON); allowed: {range}",
+            e.message
+        )
+    } else {
+        format!("{}; allowed: {range}", e.message)
+    };
+    SpecError::new(e.path, message)
 }
 
 fn finite_in(path: &str, v: f64, lo: f64, hi: f64, what: &str) -> Result<(), SpecError> {
@@ -322,7 +469,7 @@ pub fn validate(spec: &Spec) -> Result<(), SpecError> {
                 *t,
                 0.0,
                 1e12,
-                "[0, 1e12] (or \"infinite\")",
+                R_THICKNESS,
             )?,
             ThicknessSpec::Word(w) => {
                 if w != "infinite" {
@@ -349,11 +496,11 @@ pub fn validate(spec: &Spec) -> Result<(), SpecError> {
                     m.host_index,
                     1.0,
                     10.0,
-                    "[1, 10]",
+                    R_INDEX_REAL,
                 )?;
                 match (&m.radius_um, &m.size_distribution) {
                     (Some(r), None) => {
-                        finite_in(&format!("{mp}.radius_um"), *r, 1e-6, 1e4, "[1e-6, 1e4] µm")?
+                        finite_in(&format!("{mp}.radius_um"), *r, 1e-6, 1e4, R_RADIUS)?
                     }
                     (
                         None,
@@ -365,14 +512,8 @@ pub fn validate(spec: &Spec) -> Result<(), SpecError> {
                     ) => {
                         let q = format!("{mp}.size_distribution.lognormal");
                         validate_radius_limits(&q, d)?;
-                        finite_in(&format!("{q}.r_g_um"), *r_g_um, 1e-6, 1e4, "[1e-6, 1e4] µm")?;
-                        finite_in(
-                            &format!("{q}.sigma_g"),
-                            *sigma_g,
-                            1.0001,
-                            5.0,
-                            "[1.0001, 5]",
-                        )?;
+                        finite_in(&format!("{q}.r_g_um"), *r_g_um, 1e-6, 1e4, R_RADIUS)?;
+                        finite_in(&format!("{q}.sigma_g"), *sigma_g, 1.0001, 5.0, R_SIGMA_G)?;
                     }
                     (
                         None,
@@ -384,14 +525,8 @@ pub fn validate(spec: &Spec) -> Result<(), SpecError> {
                     ) => {
                         let q = format!("{mp}.size_distribution.gamma");
                         validate_radius_limits(&q, d)?;
-                        finite_in(
-                            &format!("{q}.r_eff_um"),
-                            *r_eff_um,
-                            1e-6,
-                            1e4,
-                            "[1e-6, 1e4] µm",
-                        )?;
-                        finite_in(&format!("{q}.v_eff"), *v_eff, 1e-4, 0.49, "[1e-4, 0.49]")?;
+                        finite_in(&format!("{q}.r_eff_um"), *r_eff_um, 1e-6, 1e4, R_RADIUS)?;
+                        finite_in(&format!("{q}.v_eff"), *v_eff, 1e-4, 0.49, R_V_EFF)?;
                     }
                     (Some(_), Some(_)) => {
                         return Err(SpecError::new(
@@ -409,7 +544,7 @@ pub fn validate(spec: &Spec) -> Result<(), SpecError> {
             }
             ScattererSpec::Expansion(e) => {
                 let ep = format!("{sp}.expansion");
-                finite_in(&format!("{ep}.albedo"), e.albedo, 0.0, 1.0, "[0, 1]")?;
+                finite_in(&format!("{ep}.albedo"), e.albedo, 0.0, 1.0, R_UNIT)?;
                 if e.beta.is_empty() {
                     return Err(SpecError::new(
                         format!("{ep}.beta"),
@@ -440,7 +575,7 @@ pub fn validate(spec: &Spec) -> Result<(), SpecError> {
                         if !x.is_finite() || x.abs() > 1e6 {
                             return Err(SpecError::new(
                                 format!("{ep}.{name}[{l}]"),
-                                format!("{x} is not a finite number with |x| ≤ 1e6"),
+                                format!("{x} is outside the allowed range: {R_COEFFICIENT}"),
                             ));
                         }
                     }
@@ -450,19 +585,13 @@ pub fn validate(spec: &Spec) -> Result<(), SpecError> {
                 albedo,
                 depolarization,
             } => {
-                finite_in(
-                    &format!("{sp}.rayleigh.albedo"),
-                    *albedo,
-                    0.0,
-                    1.0,
-                    "[0, 1]",
-                )?;
+                finite_in(&format!("{sp}.rayleigh.albedo"), *albedo, 0.0, 1.0, R_UNIT)?;
                 finite_in(
                     &format!("{sp}.rayleigh.depolarization"),
                     *depolarization,
                     0.0,
                     0.99,
-                    "[0, 0.99]",
+                    R_DEPOLARIZATION,
                 )?;
             }
             ScattererSpec::HenyeyGreenstein { albedo, g } => {
@@ -471,22 +600,16 @@ pub fn validate(spec: &Spec) -> Result<(), SpecError> {
                     *albedo,
                     0.0,
                     1.0,
-                    "[0, 1]",
+                    R_UNIT,
                 )?;
-                finite_in(
-                    &format!("{sp}.henyey_greenstein.g"),
-                    *g,
-                    -0.999,
-                    0.999,
-                    "[-0.999, 0.999]",
-                )?;
+                finite_in(&format!("{sp}.henyey_greenstein.g"), *g, -0.999, 0.999, R_G)?;
             }
         }
     }
     match &spec.base {
         BaseSpec::Black => {}
         BaseSpec::Lambertian { albedo } => {
-            finite_in("base.lambertian.albedo", *albedo, 0.0, 1.0, "[0, 1]")?
+            finite_in("base.lambertian.albedo", *albedo, 0.0, 1.0, R_UNIT)?
         }
         BaseSpec::Fresnel {
             material,
@@ -494,7 +617,7 @@ pub fn validate(spec: &Spec) -> Result<(), SpecError> {
         } => {
             validate_material("base.fresnel.material", material)?;
             if let Some(a) = ambient_index {
-                finite_in("base.fresnel.ambient_index", *a, 1.0, 10.0, "[1, 10]")?;
+                finite_in("base.fresnel.ambient_index", *a, 1.0, 10.0, R_INDEX_REAL)?;
             }
         }
     }
@@ -512,7 +635,7 @@ pub fn validate(spec: &Spec) -> Result<(), SpecError> {
                     *x,
                     100.0,
                     100_000.0,
-                    "[100, 100000] nm",
+                    R_WAVELENGTH,
                 )?;
             }
         }
@@ -534,7 +657,7 @@ pub fn validate(spec: &Spec) -> Result<(), SpecError> {
         ));
     }
     if let Some(t) = spec.solver.tolerance {
-        finite_in("solver.tolerance", t, 1e-10, 0.5, "[1e-10, 0.5]")?;
+        finite_in("solver.tolerance", t, 1e-10, 0.5, R_TOLERANCE)?;
     }
     Ok(())
 }
@@ -554,8 +677,8 @@ fn validate_material(path: &str, m: &MaterialSpec) -> Result<(), SpecError> {
             Ok(())
         }
         MaterialSpec::Index { n, k } => {
-            finite_in(&format!("{path}.n"), *n, 1e-6, 100.0, "(0, 100]")?;
-            finite_in(&format!("{path}.k"), *k, 0.0, 100.0, "[0, 100]")
+            finite_in(&format!("{path}.n"), *n, 1e-6, 100.0, R_N)?;
+            finite_in(&format!("{path}.k"), *k, 0.0, 100.0, R_K)
         }
     }
 }
@@ -817,6 +940,150 @@ pub fn problem(spec: &Spec, wavelength_nm: Option<f64>) -> Result<Problem, SpecE
     })
 }
 
+/// Everything the solver and the physics would refuse at solve time that
+/// the spec alone decides, checked cheaply before any solve (the service at
+/// `POST /v1/brdfs`, `polbrdf solve` before solving): the first refusal, as
+/// a [`SpecError`] naming the field to change and what would work.
+///
+/// * every named material has refractive-index data at every wavelength
+///   (path `wavelengths_nm[k]`);
+/// * Mie inputs are inside the validated range of `physics::mie`: the
+///   relative index `m = n_particle/n_host` at every wavelength and, for
+///   monodisperse spheres, the size parameter `2π r n_host/λ`;
+/// * a Fresnel base's indices are accepted by `physics::fresnel`;
+/// * a phase function that is not forward-peaked and longer than the
+///   streams can integrate ([`solver::check_resolved`]) is refused, naming
+///   the streams it needs: at `solver.streams` (or the default) for fixed
+///   streams; for a `solver.tolerance`, at the most streams a tolerance
+///   may pick (`max_streams`, rounded down to a power of two), and a
+///   tolerance needs `max_streams ≥ 4` at all.
+///
+/// Only Rayleigh, Henyey–Greenstein and expansion layers get the last
+/// check: the series of a Mie layer is known only after its Mie solve and
+/// expansion, so the solver keeps refusing those (and every other
+/// data-dependent failure: a tolerance not met, the expansion's round-off
+/// floor) at solve time.
+pub fn check_solvable(spec: &Spec, max_streams: usize) -> Result<(), SpecError> {
+    let wavelengths = wavelengths(spec);
+    for (k, wl) in wavelengths.iter().enumerate() {
+        let Some(wl) = *wl else { continue };
+        let at = |e: SpecError, material: &str| -> SpecError {
+            SpecError::new(
+                format!("wavelengths_nm[{k}]"),
+                format!("{wl} nm: {material}: {}", e.message),
+            )
+        };
+        for (i, layer) in spec.layers.iter().enumerate() {
+            let ScattererSpec::Mie(m) = &layer.scatterer else {
+                continue;
+            };
+            let mp = format!("layers[{i}].scatterer.mie");
+            let material = format!("{mp}.material");
+            let index = material_index(&m.material, wl).map_err(|e| at(e, &material))?;
+            let (k_per_um, _) =
+                crate::physics::mie::wavenumber_and_index(index, m.host_index, wl).map_err(
+                    |e| {
+                        SpecError::new(
+                            material.clone(),
+                            format!(
+                                "at {wl} nm (wavelengths_nm[{k}]) with host_index {}: {e}; the particle must differ from its binder",
+                                m.host_index
+                            ),
+                        )
+                    },
+                )?;
+            if let Some(r) = m.radius_um {
+                use crate::physics::mie::{SIZE_PARAMETER_MAX, SIZE_PARAMETER_MIN};
+                let x = k_per_um * r;
+                if !(SIZE_PARAMETER_MIN..=SIZE_PARAMETER_MAX).contains(&x) {
+                    return Err(SpecError::new(
+                        format!("{mp}.radius_um"),
+                        format!(
+                            "the Mie size parameter 2π r n_host/λ = {x:.3e} at {wl} nm (wavelengths_nm[{k}]) is outside the validated range [{SIZE_PARAMETER_MIN:e}, {SIZE_PARAMETER_MAX:e}]: choose radius_um between {:.3e} and {:.3e} µm at this wavelength",
+                            (SIZE_PARAMETER_MIN / k_per_um).max(1e-6),
+                            (SIZE_PARAMETER_MAX / k_per_um).min(1e4)
+                        ),
+                    ));
+                }
+            }
+        }
+        if let BaseSpec::Fresnel { material, .. } = &spec.base {
+            material_index(material, wl).map_err(|e| at(e, "base.fresnel.material"))?;
+            fresnel_indices(spec, Some(wl))?;
+        }
+    }
+    if matches!(spec.base, BaseSpec::Fresnel { .. }) && spec.wavelengths_nm.is_none() {
+        fresnel_indices(spec, None)?;
+    }
+    let (path, streams) = match stream_policy(spec) {
+        StreamPolicy::Fixed(n) => ("solver.streams", n),
+        StreamPolicy::Tolerance(_) => {
+            if max_streams < 4 {
+                return Err(SpecError::new(
+                    "solver.tolerance",
+                    format!(
+                        "a tolerance needs solves at 2, 3 and 4 streams, but at most {max_streams} are allowed: give solver.streams instead"
+                    ),
+                ));
+            }
+            // The levels of `reflection_to_tolerance` are 4, 8, 16, …
+            ("solver.tolerance", 1usize << max_streams.ilog2())
+        }
+    };
+    for (i, l) in spec.layers.iter().enumerate() {
+        if matches!(l.scatterer, ScattererSpec::Mie(_)) {
+            continue;
+        }
+        let (albedo, coef) = layer_optics(&format!("layers[{i}].scatterer"), &l.scatterer, None)?;
+        let layer = Layer {
+            thickness: match l.optical_thickness {
+                ThicknessSpec::Number(t) => Thickness::Finite(t),
+                ThicknessSpec::Word(_) => Thickness::Infinite,
+            },
+            albedo,
+            coef,
+        };
+        if let Err(e) = solver::check_resolved(i, &layer, streams) {
+            let needed = match e {
+                SolverError::Unresolved { needed, .. } => needed,
+                _ => 0,
+            };
+            let cap = if needed > max_streams {
+                format!(
+                    "; that is more than the {max_streams} streams allowed here, so make the phase function less backward-peaked"
+                )
+            } else if path == "solver.tolerance" {
+                format!(
+                    "; a tolerance picks at most {streams} streams here: give solver.streams ≥ {needed} instead"
+                )
+            } else {
+                String::new()
+            };
+            return Err(SpecError::new(path, format!("{e}{cap}")));
+        }
+    }
+    Ok(())
+}
+
+/// The index of a material at one wavelength; the error names the
+/// tabulated range of a built-in material.
+fn material_index(m: &MaterialSpec, wavelength_nm: f64) -> Result<RefractiveIndex, SpecError> {
+    match m {
+        MaterialSpec::Index { n, k } => Ok(RefractiveIndex::new(*n, *k)),
+        MaterialSpec::Name(name) => {
+            materials::refractive_index(name, wavelength_nm).map_err(|e| match e {
+                crate::physics::PhysicsError::OutOfRange { range, .. } => SpecError::new(
+                    "wavelengths_nm",
+                    format!(
+                        "'{name}' has refractive-index data only for {range}: choose wavelengths inside it"
+                    ),
+                ),
+                other => SpecError::new("wavelengths_nm", other.to_string()),
+            })
+        }
+    }
+}
+
 /// How the number of streams is chosen.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum StreamPolicy {
@@ -884,6 +1151,153 @@ mod tests {
         )
         .unwrap_err();
         assert_eq!(e.path, "wavelengths_nm");
+    }
+
+    const RAYLEIGH: &str = r#"{"optical_thickness":1,"scatterer":{"rayleigh":{"albedo":1}}}"#;
+
+    #[test]
+    fn a_spec_is_one_json_object() {
+        let e = parse("[]").unwrap_err();
+        assert_eq!(
+            (e.path.as_str(), e.message.as_str()),
+            ("$", "the spec must be a JSON object")
+        );
+        // The array form serde would accept for a struct is refused too.
+        let e = parse(&format!("[[{RAYLEIGH}]]")).unwrap_err();
+        assert_eq!(e.path, "$");
+        let e = parse(&format!(r#"{{"layers":[{RAYLEIGH}]}} {{}}"#)).unwrap_err();
+        assert!(
+            e.message
+                .starts_with("trailing data after the JSON document"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn a_scatterer_has_exactly_one_key() {
+        let two = r#"{"layers":[{"optical_thickness":1,"scatterer":{"rayleigh":{"albedo":1},"henyey_greenstein":{"albedo":1,"g":0}}}]}"#;
+        let e = parse(two).unwrap_err();
+        assert!(
+            e.to_string().starts_with(
+                "layers[0].scatterer: exactly one of mie, expansion, rayleigh, henyey_greenstein"
+            ),
+            "{e}"
+        );
+        let e = parse(r#"{"layers":[{"optical_thickness":1,"scatterer":{}}]}"#).unwrap_err();
+        assert!(e.message.starts_with("exactly one of"), "{e}");
+        let e = parse(r#"{"layers":[{"optical_thickness":1,"scatterer":{"lambert":{}}}]}"#)
+            .unwrap_err();
+        assert!(e.message.contains("henyey_greenstein"), "{e}");
+        // Each variant still refuses unknown fields and keeps its defaults.
+        let s = parse(&format!(r#"{{"layers":[{RAYLEIGH}]}}"#)).unwrap();
+        assert_eq!(
+            s.layers[0].scatterer,
+            ScattererSpec::Rayleigh {
+                albedo: 1.0,
+                depolarization: 0.0
+            }
+        );
+    }
+
+    #[test]
+    fn unparsable_numbers_name_the_allowed_range() {
+        for (text, path, range) in [
+            (
+                r#"{"layers":[{"optical_thickness":NaN,"scatterer":{"rayleigh":{"albedo":1}}}]}"#,
+                "layers[0].optical_thickness",
+                R_THICKNESS,
+            ),
+            (
+                r#"{"layers":[{"optical_thickness":1,"scatterer":{"rayleigh":{"albedo":1e999}}}]}"#,
+                "layers[0].scatterer.rayleigh.albedo",
+                "[0, 1]",
+            ),
+            (
+                r#"{"layers":[{"optical_thickness":1,"scatterer":{"henyey_greenstein":{"albedo":1,"g":"x"}}}]}"#,
+                "layers[0].scatterer.henyey_greenstein.g",
+                "[-0.999, 0.999]",
+            ),
+            (
+                r#"{"layers":[{"optical_thickness":1,"scatterer":{"rayleigh":{"albedo":1}}}],"wavelengths_nm":[Infinity]}"#,
+                "wavelengths_nm[0]",
+                "[100, 100000] nm",
+            ),
+        ] {
+            let e = parse(text).unwrap_err();
+            assert_eq!(e.path, path, "{e}");
+            assert!(e.message.ends_with(&format!("allowed: {range}")), "{e}");
+        }
+    }
+
+    fn hg(g: f64, solver: &str) -> Spec {
+        parse(&format!(
+            r#"{{"layers":[{{"optical_thickness":1,"scatterer":{{"henyey_greenstein":{{"albedo":1,"g":{g}}}}}}}],"solver":{solver}}}"#
+        ))
+        .unwrap()
+    }
+
+    /// Smallest N with |g|^l ≤ 1e-4 for every l ≥ 2N (HG: |β_l|/(2l+1) = |g|^l).
+    fn hg_needs(g: f64) -> usize {
+        let last_big = (0..)
+            .take_while(|&l| g.abs().powi(l) > 1e-4)
+            .last()
+            .unwrap() as usize;
+        (last_big + 1).div_ceil(2)
+    }
+
+    #[test]
+    fn backward_peaks_are_refused_before_solving() {
+        assert_eq!(hg_needs(-0.8), 21); // docs/spec.md
+        let e = check_solvable(&hg(-0.8, "{}"), MAX_STREAMS).unwrap_err();
+        assert_eq!(e.path, "solver.streams");
+        assert!(e.message.contains("at least 21 streams"), "{e}");
+        assert!(check_solvable(&hg(-0.8, r#"{"streams":21}"#), MAX_STREAMS).is_ok());
+        assert!(check_solvable(&hg(-0.8, r#"{"streams":20}"#), MAX_STREAMS).is_err());
+        assert!(check_solvable(&hg(0.8, "{}"), MAX_STREAMS).is_ok());
+        // A tolerance may pick up to the largest power of two under the cap.
+        let needs = hg_needs(-0.9);
+        assert!(needs > 32 && needs <= 64, "{needs}");
+        assert!(check_solvable(&hg(-0.9, r#"{"tolerance":1e-3}"#), 64).is_ok());
+        let e = check_solvable(&hg(-0.9, r#"{"tolerance":1e-3}"#), 63).unwrap_err();
+        assert_eq!(e.path, "solver.tolerance");
+        assert!(
+            e.message.contains(&format!("at least {needs} streams")),
+            "{e}"
+        );
+        let e = check_solvable(&hg(0.5, r#"{"tolerance":1e-3}"#), 3).unwrap_err();
+        assert_eq!(e.path, "solver.tolerance");
+    }
+
+    #[test]
+    fn wavelengths_outside_the_material_data_are_refused() {
+        let (lo, hi) = materials::find("silver").unwrap().wavelength_range_nm();
+        let spec = |wl: f64| {
+            parse(&format!(
+                r#"{{"layers":[{RAYLEIGH}],"base":{{"fresnel":{{"material":"silver"}}}},"wavelengths_nm":[{lo},{wl}]}}"#
+            ))
+            .unwrap()
+        };
+        assert!(check_solvable(&spec(hi), MAX_STREAMS).is_ok());
+        let e = check_solvable(&spec(hi + 1.0), MAX_STREAMS).unwrap_err();
+        assert_eq!(e.path, "wavelengths_nm[1]");
+        assert!(e.message.contains("base.fresnel.material"), "{e}");
+        assert!(e.message.contains(&format!("[{lo}, {hi}] nm")), "{e}");
+    }
+
+    #[test]
+    fn mie_inputs_outside_the_validated_range_are_refused() {
+        let mie = |material: &str, r: f64, wl: f64| {
+            parse(&format!(
+                r#"{{"layers":[{{"optical_thickness":1,"scatterer":{{"mie":{{"material":{material},"radius_um":{r}}}}}}}],"wavelengths_nm":[{wl}]}}"#
+            ))
+            .unwrap()
+        };
+        let e = check_solvable(&mie(r#"{"n":1,"k":0}"#, 0.2, 500.0), MAX_STREAMS).unwrap_err();
+        assert_eq!(e.path, "layers[0].scatterer.mie.material");
+        // x = 2π · 1e-6 µm / 100 µm = 6.3e-8 < 1e-6.
+        let e = check_solvable(&mie(r#"{"n":1.5,"k":0}"#, 1e-6, 1e5), MAX_STREAMS).unwrap_err();
+        assert_eq!(e.path, "layers[0].scatterer.mie.radius_um");
+        assert!(check_solvable(&mie(r#"{"n":1.5,"k":0}"#, 0.2, 500.0), MAX_STREAMS).is_ok());
     }
 
     #[test]

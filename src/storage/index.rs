@@ -151,6 +151,33 @@ impl Index {
         row.map(|r| to_row(&r)).transpose()
     }
 
+    /// Up to `limit` rows of the current version, newest first (by
+    /// `created_at`, then id), strictly after the `(created_at, id)` key
+    /// `after` of the previous page (keyset pagination: stable while rows
+    /// are added).
+    pub async fn list(
+        &self,
+        after: Option<(i64, &str)>,
+        limit: i64,
+    ) -> Result<Vec<JobRow>, StorageError> {
+        let (at, id) = after.unwrap_or((i64::MAX, ""));
+        let sql = format!(
+            "SELECT {COLUMNS} FROM jobs WHERE result_version = ?
+               AND (created_at < ? OR (created_at = ? AND id < ?) OR ? = 0)
+             ORDER BY created_at DESC, id DESC LIMIT ?"
+        );
+        let rows = sqlx::query(sqlx::AssertSqlSafe(sql))
+            .bind(result_version())
+            .bind(at)
+            .bind(at)
+            .bind(id)
+            .bind(i64::from(after.is_some()))
+            .bind(limit)
+            .fetch_all(&self.pool)
+            .await?;
+        rows.iter().map(to_row).collect()
+    }
+
     /// Queued and running rows of the current version, oldest first (the
     /// start-up scan; rows of older versions are never solved).
     pub async fn unfinished(&self) -> Result<Vec<JobRow>, StorageError> {

@@ -579,7 +579,8 @@ mod tests {
     fn header_layout_is_as_documented() {
         let b = to_bytes(&small_table(false), DataType::F32).unwrap();
         assert_eq!(&b[..8], b"PBRDFTAB");
-        assert_eq!(u32::from_le_bytes(b[8..12].try_into().unwrap()), 3);
+        assert_eq!(u32::from_le_bytes(b[8..12].try_into().unwrap()), VERSION);
+        assert_eq!(VERSION, 4);
         assert_eq!(u32::from_le_bytes(b[12..16].try_into().unwrap()), 1);
         let len = u64::from_le_bytes(b[16..24].try_into().unwrap()) as usize;
         assert_eq!(len, b.len() - HEADER_LEN);

@@ -122,18 +122,18 @@ pub fn expand_sphere(
     Ok((c, r))
 }
 
+/// An expansion, its report and the achieved round-trip floor.
+type Expanded = (
+    expansion::GreekCoefficients,
+    expansion::ExpansionReport,
+    f64,
+);
+
 /// [`expand_sphere`] with the tolerance rule of [`expand_polynomial`].
 fn expand_sphere_with(
     res: &mie::MieResult,
     tolerance: Result<f64, f64>,
-) -> Result<
-    (
-        expansion::GreekCoefficients,
-        expansion::ExpansionReport,
-        f64,
-    ),
-    PhysicsError,
-> {
+) -> Result<Expanded, PhysicsError> {
     let l_max = 2 * res.n_terms;
     let (nodes, weights) = quadrature::gauss_legendre(l_max + 2);
     let samples = res.scattering_matrix(&nodes)?;
@@ -177,14 +177,7 @@ pub fn expand_polynomial(
     l_max: usize,
     tolerance: Result<f64, f64>,
     exact: impl Fn(&[f64]) -> Result<ScatteringMatrixSamples, PhysicsError>,
-) -> Result<
-    (
-        expansion::GreekCoefficients,
-        expansion::ExpansionReport,
-        f64,
-    ),
-    PhysicsError,
-> {
+) -> Result<Expanded, PhysicsError> {
     let full = expansion::expand(samples, weights, l_max);
     let n_check = (2 * l_max + 65).min(4001);
     let theta: Vec<f64> = (0..n_check)

@@ -20,12 +20,15 @@ fn write_json(d: &Path, name: &str, v: &Value) -> String {
     p.to_string_lossy().into_owned()
 }
 
-/// `polbrdf solve SPEC --table d/NAME.pbt`; returns the table's file name.
+/// `polbrdf solve SPEC --table d/NAME.pbrdf`; returns the table's file name.
 fn table(d: &Path, name: &str, spec: &Value) -> String {
     let s = write_json(d, &format!("{name}.json"), spec);
-    let t = d.join(format!("{name}.pbt")).to_string_lossy().into_owned();
+    let t = d
+        .join(format!("{name}.pbrdf"))
+        .to_string_lossy()
+        .into_owned();
     ok(&["solve", &s, "--table", &t]);
-    format!("{name}.pbt")
+    format!("{name}.pbrdf")
 }
 
 /// A `.npy` float32 Stokes image: (shape, values).
@@ -291,7 +294,7 @@ async fn tables_from_a_running_service() {
 #[test]
 fn bad_scenes_are_clear_errors() {
     let d = TempDir::new("render-errors");
-    let good = sphere_scene("missing.pbt", [1.0, 0.0, 0.0, 0.0]);
+    let good = sphere_scene("missing.pbrdf", [1.0, 0.0, 0.0, 0.0]);
     let out = d.0.join("x").to_string_lossy().into_owned();
     let cases: Vec<(Value, &str)> = vec![
         (

@@ -37,7 +37,7 @@ pub struct Spec {
     /// Layers, top to bottom.
     pub layers: Vec<LayerSpec>,
     /// Lower boundary.
-    #[serde(default)]
+    #[serde(default, deserialize_with = "one_key::<_, BaseSpec>")]
     pub base: BaseSpec,
     /// Vacuum wavelengths in nm; required when anything depends on wavelength.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -160,6 +160,87 @@ impl<'de> Deserialize<'de> for ScattererSpec {
     }
 }
 
+/// An externally tagged enum written as an object with exactly one key (or,
+/// for a unit variant, as its name: `"base": "black"`). serde's derived enums
+/// report a second key as "expected value at line L column C", a JSON syntax
+/// error it is not, and an empty object as "invalid type: map"; this names
+/// both as what they are. Used through `deserialize_with`.
+fn one_key<'de, D, T>(d: D) -> Result<T, D::Error>
+where
+    D: serde::Deserializer<'de>,
+    T: Deserialize<'de> + OneOf,
+{
+    use serde::de::value::{MapAccessDeserializer, StrDeserializer};
+    use serde::de::{Error, MapAccess, Visitor};
+    struct V<T>(std::marker::PhantomData<T>);
+    fn exactly_one<T: OneOf, E: Error>(found: &str) -> E {
+        E::custom(format!("exactly one of {} ({found})", T::KEYS.join(", ")))
+    }
+    impl<'de, T: Deserialize<'de> + OneOf> Visitor<'de> for V<T> {
+        type Value = T;
+        fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+            write!(f, "an object with exactly one of {}", T::KEYS.join(", "))
+        }
+        fn visit_str<E: Error>(self, v: &str) -> Result<T, E> {
+            T::deserialize(StrDeserializer::<E>::new(v))
+        }
+        fn visit_map<A: MapAccess<'de>>(self, mut map: A) -> Result<T, A::Error> {
+            let value = T::deserialize(MapAccessDeserializer::new(&mut map)).map_err(|e| {
+                let m = e.to_string();
+                if m.starts_with("invalid type: map") {
+                    exactly_one::<T, A::Error>("found none")
+                } else {
+                    e
+                }
+            })?;
+            if let Some(second) = map.next_key::<String>()? {
+                return Err(exactly_one::<T, A::Error>(&format!(
+                    "found {} and {second}",
+                    T::key_of(&value)
+                )));
+            }
+            Ok(value)
+        }
+    }
+    d.deserialize_any(V(std::marker::PhantomData))
+}
+
+/// [`one_key`] of an optional field (present: `Some`).
+fn some_one_key<'de, D, T>(d: D) -> Result<Option<T>, D::Error>
+where
+    D: serde::Deserializer<'de>,
+    T: Deserialize<'de> + OneOf,
+{
+    one_key(d).map(Some)
+}
+
+/// The keys of a one-key object and which one a value was written with.
+trait OneOf {
+    const KEYS: &'static [&'static str];
+    fn key_of(&self) -> &'static str;
+}
+
+impl OneOf for BaseSpec {
+    const KEYS: &'static [&'static str] = &["black", "lambertian", "fresnel"];
+    fn key_of(&self) -> &'static str {
+        match self {
+            Self::Black => "black",
+            Self::Lambertian { .. } => "lambertian",
+            Self::Fresnel { .. } => "fresnel",
+        }
+    }
+}
+
+impl OneOf for SizeDistributionSpec {
+    const KEYS: &'static [&'static str] = &["lognormal", "gamma"];
+    fn key_of(&self) -> &'static str {
+        match self {
+            Self::Lognormal { .. } => "lognormal",
+            Self::Gamma { .. } => "gamma",
+        }
+    }
+}
+
 /// A material given by name or by index.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(untagged)]
@@ -185,7 +266,11 @@ pub struct MieSpec {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub radius_um: Option<f64>,
     /// Size distribution; exclusive with `radius_um`.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(
+        default,
+        skip_serializing_if = "Option::is_none",
+        deserialize_with = "some_one_key"
+    )]
     pub size_distribution: Option<SizeDistributionSpec>,
     /// Real refractive index of the binder (≥ 1).
     #[serde(default = "one")]
@@ -354,8 +439,59 @@ pub fn parse(text: &str) -> Result<Spec, SpecError> {
         return Err(SpecError::new("$", "the spec must be a JSON object"));
     }
     let spec: Spec = json::from_str(text).map_err(with_allowed_range)?;
+    let tree: serde_json::Value = json::from_str(text)?;
+    objects_not_arrays(&tree, &mut String::new())?;
     validate(&spec)?;
     Ok(spec)
+}
+
+/// The spec's arrays: `layers`, `wavelengths_nm` and the Greek coefficients.
+const ARRAYS: [&str; 8] = [
+    "layers",
+    "wavelengths_nm",
+    "layers[].scatterer.expansion.beta",
+    "layers[].scatterer.expansion.alpha",
+    "layers[].scatterer.expansion.zeta",
+    "layers[].scatterer.expansion.delta",
+    "layers[].scatterer.expansion.gamma",
+    "layers[].scatterer.expansion.epsilon",
+];
+
+/// serde reads a struct written as an array of its fields in order
+/// (`"solver": [8]`, a layer as `[1, {…}]`); the spec's objects are objects.
+/// Refuses an array anywhere but [`ARRAYS`] (paths without indices), naming
+/// its path; `path` is the JSON path of `v`.
+fn objects_not_arrays(v: &serde_json::Value, path: &mut String) -> Result<(), SpecError> {
+    use serde_json::Value;
+    match v {
+        Value::Object(map) => {
+            for (k, x) in map {
+                let len = path.len();
+                if !path.is_empty() {
+                    path.push('.');
+                }
+                path.push_str(k);
+                objects_not_arrays(x, path)?;
+                path.truncate(len);
+            }
+        }
+        Value::Array(items) => {
+            if !ARRAYS.contains(&without_indices(path).as_str()) {
+                return Err(SpecError::new(
+                    path.clone(),
+                    "expected an object with named fields, found an array",
+                ));
+            }
+            let len = path.len();
+            for (i, x) in items.iter().enumerate() {
+                path.push_str(&format!("[{i}]"));
+                objects_not_arrays(x, path)?;
+                path.truncate(len);
+            }
+        }
+        _ => {}
+    }
+    Ok(())
 }
 
 // Allowed ranges, one text per field: `validate` reports them, and so does
@@ -375,9 +511,9 @@ const R_STREAMS: &str = "[1, 512] (integer)";
 const R_TOLERANCE: &str = "[1e-10, 0.5]";
 const R_COEFFICIENT: &str = "finite numbers with |x| ≤ 1e6";
 
-/// The allowed range of the numeric field at a JSON path, if it is one.
-fn allowed_range(path: &str) -> Option<&'static str> {
-    // `layers[3].scatterer…` → `layers[].scatterer…`
+/// A JSON path with its array indices left out: `layers[3].scatterer` →
+/// `layers[].scatterer`.
+fn without_indices(path: &str) -> String {
     let mut p = String::with_capacity(path.len());
     let mut in_index = false;
     for c in path.chars() {
@@ -394,6 +530,12 @@ fn allowed_range(path: &str) -> Option<&'static str> {
             _ => p.push(c),
         }
     }
+    p
+}
+
+/// The allowed range of the numeric field at a JSON path, if it is one.
+fn allowed_range(path: &str) -> Option<&'static str> {
+    let p = without_indices(path);
     let p = p.as_str();
     let tail = |suffix: &str| p.ends_with(suffix);
     Some(match p {
@@ -1171,6 +1313,75 @@ mod tests {
                 .starts_with("trailing data after the JSON document"),
             "{e}"
         );
+    }
+
+    #[test]
+    fn a_base_and_a_size_distribution_have_exactly_one_key() {
+        let layer = format!(r#"{{"layers":[{RAYLEIGH}],"base":"#);
+        let e = parse(&format!(
+            r#"{layer}{{"lambertian":{{"albedo":0.5}},"fresnel":{{"material":"silver"}}}}}}"#
+        ))
+        .unwrap_err();
+        assert_eq!(e.path, "base");
+        assert!(
+            e.message.starts_with(
+                "exactly one of black, lambertian, fresnel (found lambertian and fresnel)"
+            ),
+            "{e}"
+        );
+        let e = parse(&format!("{layer}{{}}}}")).unwrap_err();
+        assert!(e.message.contains("found none"), "{e}");
+        let e = parse(&format!(r#"{layer}"mirror"}}"#)).unwrap_err();
+        assert!(e.message.contains("unknown variant `mirror`"), "{e}");
+        // The accepted forms are unchanged.
+        assert_eq!(
+            parse(&format!(r#"{layer}"black"}}"#)).unwrap().base,
+            BaseSpec::Black
+        );
+        assert_eq!(
+            parse(&format!(r#"{layer}{{"lambertian":{{"albedo":0.5}}}}}}"#))
+                .unwrap()
+                .base,
+            BaseSpec::Lambertian { albedo: 0.5 }
+        );
+        let e = parse(&format!(
+            r#"{layer}{{"lambertian":{{"albedo":0.5,"x":1}}}}}}"#
+        ))
+        .unwrap_err();
+        assert_eq!(e.path, "base.lambertian.x");
+        let psd = r#"{"layers":[{"optical_thickness":1,"scatterer":{"mie":{"material":"TiO2","size_distribution":{"lognormal":{"r_g_um":0.2,"sigma_g":1.3},"gamma":{"r_eff_um":0.2,"v_eff":0.1}}}}}],"wavelengths_nm":[550]}"#;
+        let e = parse(psd).unwrap_err();
+        assert_eq!(e.path, "layers[0].scatterer.mie.size_distribution");
+        assert!(
+            e.message
+                .starts_with("exactly one of lognormal, gamma (found lognormal and gamma)"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn structs_written_as_arrays_are_refused() {
+        for (text, path) in [
+            (
+                r#"{"layers":[[1,{"rayleigh":{"albedo":0.9}}]]}"#,
+                "layers[0]",
+            ),
+            (
+                r#"{"layers":[{"optical_thickness":1,"scatterer":{"rayleigh":[0.9]}}]}"#,
+                "layers[0].scatterer.rayleigh",
+            ),
+            (
+                r#"{"layers":[{"optical_thickness":1,"scatterer":{"rayleigh":{"albedo":0.9}}}],"solver":[8]}"#,
+                "solver",
+            ),
+        ] {
+            let e = parse(text).unwrap_err();
+            assert_eq!(e.path, path, "{text}: {e}");
+            assert!(e.message.contains("found an array"), "{e}");
+        }
+        // The spec's own arrays are fine.
+        let gs = r#"{"layers":[{"optical_thickness":1,"scatterer":{"expansion":{"albedo":1,"beta":[1,0.5],"gamma":[0,0.1]}}}],"wavelengths_nm":[550]}"#;
+        parse(gs).unwrap();
     }
 
     #[test]

@@ -32,6 +32,7 @@ use crate::physics::RefractiveIndex;
 use crate::physics::stokes::{Mueller, mul, rotation};
 use crate::solver::truncation::{CorrectionLayer, SingleScatterCorrection};
 use crate::solver::{self, Base};
+use crate::spec::plan::Plan;
 use crate::spec::{self, Spec};
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
@@ -245,10 +246,10 @@ pub struct Table {
 /// keep `f^m = ρ^m/μ_i` (T0) and, for a mirror base, `e^{−2τ/μ} M_F(μ)` per
 /// node.
 pub fn build(spec: &Spec, grid: &PolarGrid) -> Result<Vec<WavelengthTable>, BrdfError> {
-    Ok(build_with_streams(spec, grid, &BuildOptions::default())?
-        .into_iter()
-        .map(|(w, _, _)| w)
-        .collect())
+    let plan = Plan::lower(spec)?;
+    (0..plan.wavelengths.len())
+        .map(|k| build_wavelength(&plan, k, grid, &BuildOptions::default()).map(|b| b.block))
+        .collect()
 }
 
 /// How [`Table::from_spec_with`] builds a table.
@@ -271,93 +272,105 @@ impl Default for BuildOptions<'_> {
     }
 }
 
-/// [`build`], also returning per wavelength the streams used and the
-/// solver's error estimate (tolerance specs).
-fn build_with_streams(
-    spec: &Spec,
+/// One wavelength of a table, solved: the block, the streams used and the
+/// solver's error estimate.
+pub struct BuiltWavelength {
+    /// The stored coefficients.
+    pub block: WavelengthTable,
+    /// Streams of the solve (the policy's fixed count, or what a tolerance
+    /// picked).
+    pub streams: usize,
+    /// The solver's a-posteriori estimate.
+    pub error_estimate: Option<EstimateMeta>,
+}
+
+/// Solve wavelength `k` of a plan at the grid cosines (see [`build`]).
+/// `options.on_progress` gets `(k, plan wavelengths, fraction)`.
+pub fn build_wavelength(
+    plan: &Plan,
+    k: usize,
     grid: &PolarGrid,
     options: &BuildOptions,
-) -> Result<Vec<(WavelengthTable, usize, Option<EstimateMeta>)>, BrdfError> {
-    let mut out = Vec::new();
-    let wavelengths = spec::wavelengths(spec);
-    let total = wavelengths.len();
-    for (k, wl) in wavelengths.into_iter().enumerate() {
-        let problem = spec::problem(spec, wl)?;
-        let t0 = Instant::now();
-        let progress = |x: f64| (options.on_progress)(k, total, x);
-        let (refl, streams, error_estimate) = match spec::stream_policy(spec) {
-            spec::StreamPolicy::Fixed(_) => {
-                let e = solver::accuracy::reflection_with_estimate_observed(
-                    &problem, &grid.mu, &progress,
-                )?;
-                (e.reflection, problem.settings.streams, e.estimate)
-            }
-            spec::StreamPolicy::Tolerance(t) => {
-                let e = solver::accuracy::reflection_to_tolerance(
-                    &problem,
-                    &grid.mu,
-                    t,
-                    options.max_streams,
-                    &progress,
-                )?;
-                (e.reflection, e.estimate.streams[2], e.estimate)
-            }
-        };
-        let error_estimate = Some(EstimateMeta {
-            max_err_f11: error_estimate.max_err_f11,
-            streams: error_estimate.streams,
-            contraction: error_estimate.contraction,
-        });
-        let ns = refl.ns;
-        let n = grid.len();
-        let orders = refl.rho.len();
-        let mut f = vec![0.0; orders * n * n * ns * ns];
-        for (m, rho) in refl.rho.iter().enumerate() {
-            for o in 0..n {
-                for i in 0..n {
-                    let inv = 1.0 / grid.mu[i];
-                    let base = ((m * n + o) * n + i) * ns * ns;
-                    for p in 0..ns {
-                        for q in 0..ns {
-                            f[base + p * ns + q] = rho[(o * ns + p, i * ns + q)] * inv;
-                        }
+) -> Result<BuiltWavelength, BrdfError> {
+    let total = plan.wavelengths.len();
+    let lowered = &plan.wavelengths[k];
+    let (wl, problem) = (lowered.wavelength_nm, &lowered.problem);
+    let t0 = Instant::now();
+    let progress = |x: f64| (options.on_progress)(k, total, x);
+    let (refl, streams, error_estimate) = match plan.policy {
+        spec::StreamPolicy::Fixed(_) => {
+            let e =
+                solver::accuracy::reflection_with_estimate_observed(problem, &grid.mu, &progress)?;
+            (e.reflection, problem.settings.streams, e.estimate)
+        }
+        spec::StreamPolicy::Tolerance(t) => {
+            let e = solver::accuracy::reflection_to_tolerance(
+                problem,
+                &grid.mu,
+                t,
+                options.max_streams,
+                &progress,
+            )?;
+            (e.reflection, e.estimate.streams[2], e.estimate)
+        }
+    };
+    let error_estimate = Some(EstimateMeta {
+        max_err_f11: error_estimate.max_err_f11,
+        streams: error_estimate.streams,
+        contraction: error_estimate.contraction,
+    });
+    let ns = refl.ns;
+    let n = grid.len();
+    let orders = refl.rho.len();
+    let mut f = vec![0.0; orders * n * n * ns * ns];
+    for (m, rho) in refl.rho.iter().enumerate() {
+        for o in 0..n {
+            for i in 0..n {
+                let inv = 1.0 / grid.mu[i];
+                let base = ((m * n + o) * n + i) * ns * ns;
+                for p in 0..ns {
+                    for q in 0..ns {
+                        f[base + p * ns + q] = rho[(o * ns + p, i * ns + q)] * inv;
                     }
                 }
             }
         }
-        let specular = match &problem.base {
-            Base::Mirror { mueller } => Some(
-                grid.mu
-                    .iter()
-                    .zip(&refl.direct)
-                    .map(|(&mu, &e)| scale(&mueller(mu), e * e))
-                    .collect(),
-            ),
-            _ => None,
-        };
-        let correction = match refl.correction {
-            Some(correction) => Some(StoredCorrection {
-                mirror_indices: match correction.mirror {
-                    Some(_) => spec::fresnel_indices(spec, wl)?,
-                    None => None,
-                },
-                correction,
-            }),
-            None => None,
-        };
-        let block = WavelengthTable {
-            wavelength_nm: wl,
-            ns,
-            nodes: n,
-            orders,
-            f,
-            specular,
-            wall_time_ms: t0.elapsed().as_secs_f64() * 1e3,
-            correction,
-        };
-        out.push((block, streams, error_estimate));
     }
-    Ok(out)
+    let specular = match &problem.base {
+        Base::Mirror { mueller } => Some(
+            grid.mu
+                .iter()
+                .zip(&refl.direct)
+                .map(|(&mu, &e)| scale(&mueller(mu), e * e))
+                .collect(),
+        ),
+        _ => None,
+    };
+    let correction = match refl.correction {
+        Some(correction) => Some(StoredCorrection {
+            mirror_indices: match correction.mirror {
+                Some(_) => lowered.mirror_indices,
+                None => None,
+            },
+            correction,
+        }),
+        None => None,
+    };
+    let block = WavelengthTable {
+        wavelength_nm: wl,
+        ns,
+        nodes: n,
+        orders,
+        f,
+        specular,
+        wall_time_ms: t0.elapsed().as_secs_f64() * 1e3,
+        correction,
+    };
+    Ok(BuiltWavelength {
+        block,
+        streams,
+        error_estimate,
+    })
 }
 
 /// An `ns × ns` row-major block as a 4×4 matrix (zeros outside).
@@ -558,54 +571,41 @@ impl Table {
         grid: PolarGrid,
         options: &BuildOptions,
     ) -> Result<Self, BrdfError> {
-        let built = build_with_streams(spec, &grid, options)?;
-        let extra: Vec<(Option<f64>, usize, Option<EstimateMeta>)> = built
-            .iter()
-            .map(|(w, n, e)| (w.wavelength_nm, *n, e.clone()))
-            .collect();
-        let mut table = Self::new(spec, grid, built.into_iter().map(|b| b.0).collect())?;
-        for m in &mut table.metadata.wavelengths {
-            if let Some((_, n, e)) = extra.iter().find(|x| x.0 == m.wavelength_nm) {
-                m.streams = *n;
-                m.error_estimate = e.clone();
-            }
-        }
-        Ok(table)
+        let plan = Plan::lower(spec)?;
+        let built = (0..plan.wavelengths.len())
+            .map(|k| build_wavelength(&plan, k, &grid, options))
+            .collect::<Result<Vec<_>, _>>()?;
+        Self::from_plan(&plan, grid, built)
     }
 
-    /// Wrap built wavelength blocks with metadata (sorted by wavelength); the
-    /// per-wavelength `streams` are the spec's fixed (or default) count and
-    /// no error estimate is recorded (callers that solved otherwise set
-    /// [`WavelengthMeta::streams`] and [`WavelengthMeta::error_estimate`]).
-    pub fn new(
-        spec: &Spec,
+    /// The table of a plan's solved wavelengths (sorted by wavelength), with
+    /// its metadata written once: the canonical spec and its id, the
+    /// settings, and per wavelength the orders, time, streams and estimate.
+    pub fn from_plan(
+        plan: &Plan,
         grid: PolarGrid,
-        mut wavelengths: Vec<WavelengthTable>,
+        mut built: Vec<BuiltWavelength>,
     ) -> Result<Self, BrdfError> {
-        wavelengths.sort_by(|a, b| {
-            a.wavelength_nm
+        built.sort_by(|a, b| {
+            a.block
+                .wavelength_nm
                 .unwrap_or(0.0)
-                .total_cmp(&b.wavelength_nm.unwrap_or(0.0))
+                .total_cmp(&b.block.wavelength_nm.unwrap_or(0.0))
         });
-        if wavelengths
+        if built
             .windows(2)
-            .any(|w| w[0].wavelength_nm == w[1].wavelength_nm)
+            .any(|w| w[0].block.wavelength_nm == w[1].block.wavelength_nm)
         {
             return Err(BrdfError::Query("a wavelength is listed twice".into()));
         }
-        // The settings `spec::problem` derives (the first wavelength's).
-        let first = spec::wavelengths(spec).into_iter().next().flatten();
-        let settings = spec::problem(spec, first)?.settings;
-        // The spec's id: SHA-256 of its canonical form (docs/service.md), the
-        // same id the service uses.
-        let (_, spec_id) = crate::spec::canonical::id(spec);
+        let settings = &plan.settings;
         let metadata = Metadata {
             generator: format!("polbrdf {}", env!("CARGO_PKG_VERSION")),
-            spec: serde_json::to_value(spec).map_err(|e| BrdfError::Format(e.to_string()))?,
-            spec_hash: spec_id,
+            spec: plan.canonical_spec(),
+            spec_hash: plan.id.clone(),
             solver: SolverMeta {
                 streams: settings.streams,
-                tolerance: match spec::stream_policy(spec) {
+                tolerance: match plan.policy {
                     spec::StreamPolicy::Tolerance(t) => Some(t),
                     spec::StreamPolicy::Fixed(_) => None,
                 },
@@ -617,21 +617,21 @@ impl Table {
             grid: grid_description(&grid),
             interpolation: INTERPOLATION.into(),
             conventions: CONVENTIONS.into(),
-            wavelengths: wavelengths
+            wavelengths: built
                 .iter()
-                .map(|w| WavelengthMeta {
-                    wavelength_nm: w.wavelength_nm,
-                    fourier_orders: w.orders,
-                    wall_time_ms: w.wall_time_ms,
-                    streams: settings.streams,
-                    error_estimate: None,
+                .map(|b| WavelengthMeta {
+                    wavelength_nm: b.block.wavelength_nm,
+                    fourier_orders: b.block.orders,
+                    wall_time_ms: b.block.wall_time_ms,
+                    streams: b.streams,
+                    error_estimate: b.error_estimate.clone(),
                 })
                 .collect(),
         };
         Ok(Self {
             metadata,
             grid,
-            wavelengths,
+            wavelengths: built.into_iter().map(|b| b.block).collect(),
         })
     }
 

@@ -12,10 +12,11 @@
 //! fields are 0), so a re-solve reproduces the same digest.
 
 use crate::brdf::format::{self, DataType};
-use crate::brdf::table::BuildOptions;
+use crate::brdf::table::{self, BuildOptions};
 use crate::brdf::{BrdfError, PolarGrid, Table};
 use crate::solver;
-use crate::spec::{self, Spec, canonical};
+use crate::spec::Spec;
+use crate::spec::plan::Plan;
 use std::time::Instant;
 
 /// Media type of the stored bytes, with the table format version
@@ -74,61 +75,40 @@ pub fn solve(
     on_wavelength: &mut dyn FnMut(usize, usize, f64),
 ) -> Result<Solved, SolveFailure> {
     let grid = PolarGrid::default();
-    let wavelengths = spec::wavelengths(spec);
-    let total = wavelengths.len();
-    let mut blocks = Vec::with_capacity(total);
-    let mut metas = Vec::with_capacity(total);
+    // One lowering: Mie and the expansion once per wavelength, the id once.
+    let plan =
+        Plan::lower_naming_wavelength(spec).map_err(|(e, wl)| failure(BrdfError::Spec(e), wl))?;
+    let total = plan.wavelengths.len();
+    let mut built = Vec::with_capacity(total);
     let mut wall = Vec::with_capacity(total);
-    for (k, wl) in wavelengths.into_iter().enumerate() {
+    for k in 0..total {
+        let wl = plan.wavelengths[k].wavelength_nm;
         let t0 = Instant::now();
-        let one = Spec {
-            wavelengths_nm: wl.map(|w| vec![w]),
-            ..spec.clone()
-        };
         let options = BuildOptions {
             max_streams,
             on_progress: &|_, _, x| on_progress((k as f64 + x) / total as f64),
         };
-        let mut single =
-            Table::from_spec_with(&one, grid.clone(), &options).map_err(|e| failure(e, wl))?;
-        let (Some(mut block), Some(meta)) =
-            (single.wavelengths.pop(), single.metadata.wavelengths.pop())
-        else {
-            return Err(failure(
-                BrdfError::Format("the table builder returned no wavelength".into()),
-                wl,
-            ));
-        };
-        if block.f.iter().any(|x| !x.is_finite()) {
+        let mut one =
+            table::build_wavelength(&plan, k, &grid, &options).map_err(|e| failure(e, wl))?;
+        if one.block.f.iter().any(|x| !x.is_finite()) {
             return Err(failure(
                 BrdfError::Solver(solver::SolverError::NonFinite("BRDF coefficients".into())),
                 wl,
             ));
         }
         // Timings belong to the job's row; the bytes stay deterministic.
-        block.wall_time_ms = 0.0;
-        blocks.push(block);
-        metas.push(meta);
+        one.block.wall_time_ms = 0.0;
+        built.push(one);
         let ms = t0.elapsed().as_secs_f64() * 1e3;
         wall.push(ms);
         on_wavelength(k + 1, total, ms);
     }
-    let mut table = Table::new(spec, grid, blocks).map_err(|e| failure(e, None))?;
-    for m in &mut table.metadata.wavelengths {
-        if let Some(solved) = metas.iter().find(|x| x.wavelength_nm == m.wavelength_nm) {
-            m.streams = solved.streams;
-            m.error_estimate = solved.error_estimate.clone();
-        }
-        m.wall_time_ms = 0.0;
-    }
-    let (canonical_json, id) = canonical::id(spec);
-    table.metadata.spec = serde_json::from_str(&canonical_json).expect("canonical JSON");
-    table.metadata.spec_hash = id;
-    let error_estimate = metas
+    let error_estimate = built
         .iter()
-        .filter_map(|m| m.error_estimate.as_ref().map(|e| e.max_err_f11))
+        .filter_map(|b| b.error_estimate.as_ref().map(|e| e.max_err_f11))
         .filter(|e| e.is_finite())
         .reduce(f64::max);
+    let table = Table::from_plan(&plan, grid, built).map_err(|e| failure(e, None))?;
     let bytes = format::to_bytes(&table, DATA_TYPE).map_err(|e| failure(e, None))?;
     Ok(Solved {
         bytes,

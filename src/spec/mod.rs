@@ -4,6 +4,7 @@
 
 pub mod canonical;
 pub mod json;
+pub mod plan;
 
 use crate::physics::expansion::GreekCoefficients;
 use crate::physics::{RefractiveIndex, fresnel, materials};
@@ -1073,13 +1074,18 @@ pub fn problem(spec: &Spec, wavelength_nm: Option<f64>) -> Result<Problem, SpecE
     Ok(Problem {
         layers,
         base,
-        settings: Settings {
-            streams: spec.solver.streams.unwrap_or(DEFAULT_STREAMS),
-            polarized: spec.solver.polarized,
-            secondary_scattering: spec.solver.secondary_scattering,
-            ..Settings::default()
-        },
+        settings: settings(spec),
     })
+}
+
+/// The solver settings of a spec (the same at every wavelength).
+pub fn settings(spec: &Spec) -> Settings {
+    Settings {
+        streams: spec.solver.streams.unwrap_or(DEFAULT_STREAMS),
+        polarized: spec.solver.polarized,
+        secondary_scattering: spec.solver.secondary_scattering,
+        ..Settings::default()
+    }
 }
 
 /// Everything the solver and the physics would refuse at solve time that

@@ -1,0 +1,103 @@
+//! Lowering: a validated spec, once, into what the table builder and the job
+//! layer run. Mie theory and the expansion run here, once per wavelength and
+//! layer (before, the table builder lowered the spec again only to read its
+//! settings, and the job layer once more per wavelength); the canonical form
+//! and its id (docs/service.md, "Ids and versions") are computed once.
+
+use super::{Spec, wavelengths};
+use super::{SpecError, StreamPolicy, canonical, fresnel_indices, problem, stream_policy};
+use crate::physics::RefractiveIndex;
+use crate::solver::{Problem, Settings};
+
+/// A spec lowered for solving.
+#[derive(Clone)]
+pub struct Plan {
+    /// The canonical physical spec (JSON text) the id hashes.
+    pub canonical_json: String,
+    /// The result id: SHA-256 of the canonical form and the result version.
+    pub id: String,
+    /// Fixed streams or a tolerance.
+    pub policy: StreamPolicy,
+    /// The solver settings (the same at every wavelength).
+    pub settings: Settings,
+    /// Per wavelength, in the spec's order.
+    pub wavelengths: Vec<Lowered>,
+}
+
+/// One wavelength of a [`Plan`].
+#[derive(Clone)]
+pub struct Lowered {
+    /// `None` for a wavelength-free spec.
+    pub wavelength_nm: Option<f64>,
+    /// The solver problem (Mie and expansion done).
+    pub problem: Problem,
+    /// A Fresnel base's `(n_above, n_base)` at this wavelength.
+    pub mirror_indices: Option<(f64, RefractiveIndex)>,
+}
+
+impl Plan {
+    /// Lower a validated spec ([`super::parse`]); fails as [`problem`] does
+    /// (a Mie or expansion refusal, naming the layer).
+    pub fn lower(spec: &Spec) -> Result<Self, SpecError> {
+        Self::lower_naming_wavelength(spec).map_err(|(e, _)| e)
+    }
+
+    /// [`Plan::lower`], its error with the wavelength being lowered.
+    pub fn lower_naming_wavelength(spec: &Spec) -> Result<Self, (SpecError, Option<f64>)> {
+        let (canonical_json, id) = canonical::id(spec);
+        let mut lowered = Vec::new();
+        for wl in wavelengths(spec) {
+            let at = |e| (e, wl);
+            lowered.push(Lowered {
+                wavelength_nm: wl,
+                problem: problem(spec, wl).map_err(at)?,
+                mirror_indices: fresnel_indices(spec, wl).map_err(at)?,
+            });
+        }
+        Ok(Self {
+            canonical_json,
+            id,
+            policy: stream_policy(spec),
+            settings: super::settings(spec),
+            wavelengths: lowered,
+        })
+    }
+
+    /// The canonical spec as a JSON value (what a table's metadata stores).
+    pub fn canonical_spec(&self) -> serde_json::Value {
+        serde_json::from_str(&self.canonical_json).expect("canonical JSON")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_plan_holds_one_problem_per_wavelength_and_the_service_id() {
+        let s = super::super::parse(
+            r#"{"layers":[{"optical_thickness":1,"scatterer":{"mie":{"material":"TiO2","radius_um":0.2}}}],
+                "base":{"fresnel":{"material":"silver"}},"wavelengths_nm":[650,450,550],
+                "solver":{"streams":8}}"#,
+        )
+        .unwrap();
+        let plan = Plan::lower(&s).unwrap();
+        assert_eq!(plan.id, canonical::id(&s).1);
+        let wl: Vec<_> = plan.wavelengths.iter().map(|w| w.wavelength_nm).collect();
+        assert_eq!(wl, [Some(650.0), Some(450.0), Some(550.0)]);
+        for w in &plan.wavelengths {
+            // The same problem a separate lowering of that wavelength gives.
+            let p = problem(&s, w.wavelength_nm).unwrap();
+            assert_eq!(w.problem.layers[0].coef.beta, p.layers[0].coef.beta);
+            assert_eq!(w.problem.layers[0].albedo, p.layers[0].albedo);
+            assert!(w.mirror_indices.is_some());
+        }
+        // Mie at 450 nm and 650 nm differ: each wavelength was lowered itself.
+        assert_ne!(
+            plan.wavelengths[0].problem.layers[0].coef.beta,
+            plan.wavelengths[1].problem.layers[0].coef.beta
+        );
+        assert_eq!(plan.settings.streams, 8);
+        assert_eq!(plan.policy, StreamPolicy::Fixed(8));
+    }
+}

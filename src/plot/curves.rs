@@ -224,22 +224,17 @@ pub fn dop_vs_mu(
     e: [f64; 4],
 ) -> Result<Vec<DopSample>, String> {
     let user = distinct(mus.iter().copied().chain([mu0]));
-    let per_tau: Vec<Result<Vec<DopSample>, String>> = taus
-        .par_iter()
-        .map(|&t| {
-            let p = with_top_thickness(problem, t)?;
-            let r = reflect(&p, policy, &user).map_err(|e| e.to_string())?;
-            let mut out = Vec::new();
-            for &phi in phis_deg {
-                for &mu in mus {
-                    let f = brdf_at(&r, mu0, mu, phi);
-                    out.push(DopSample::new(tau_value(t), e, mu0, mu, phi, &f));
-                }
+    per_thickness(problem, taus, |t, p| {
+        let r = reflect(p, policy, &user).map_err(|e| e.to_string())?;
+        let mut out = Vec::new();
+        for &phi in phis_deg {
+            for &mu in mus {
+                let f = brdf_at(&r, mu0, mu, phi);
+                out.push(DopSample::new(tau_value(t), e, mu0, mu, phi, &f));
             }
-            Ok(out)
-        })
-        .collect();
-    per_tau.into_iter().flatten_ok()
+        }
+        Ok(out)
+    })
 }
 
 /// Seed Fig. 8 from a table (one thickness: the table's own, `tau`).
@@ -275,19 +270,14 @@ pub fn dop_vs_tau(
     stokes: &[[f64; 4]],
 ) -> Result<Vec<DopSample>, String> {
     let user = distinct([mu0, mu]);
-    let per_tau: Vec<Result<Vec<DopSample>, String>> = taus
-        .par_iter()
-        .map(|&t| {
-            let p = with_top_thickness(problem, t)?;
-            let r = reflect(&p, policy, &user).map_err(|e| e.to_string())?;
-            let f = brdf_at(&r, mu0, mu, phi_o_deg);
-            Ok(stokes
-                .iter()
-                .map(|&e| DopSample::new(tau_value(t), e, mu0, mu, phi_o_deg, &f))
-                .collect())
-        })
-        .collect();
-    per_tau.into_iter().flatten_ok()
+    per_thickness(problem, taus, |t, p| {
+        let r = reflect(p, policy, &user).map_err(|e| e.to_string())?;
+        let f = brdf_at(&r, mu0, mu, phi_o_deg);
+        Ok(stokes
+            .iter()
+            .map(|&e| DopSample::new(tau_value(t), e, mu0, mu, phi_o_deg, &f))
+            .collect())
+    })
 }
 
 /// One sample of a scalar-error curve.
@@ -320,36 +310,31 @@ pub fn scalar_error_vs_tau(
     taus: &[Thickness],
 ) -> Result<Vec<ErrorSample>, String> {
     let user = distinct(pairs.iter().flat_map(|&(a, b)| [a, b]));
-    let per_tau: Vec<Result<Vec<ErrorSample>, String>> = taus
-        .par_iter()
-        .map(|&t| {
-            let p = with_top_thickness(problem, t)?;
-            let pv = {
-                let mut v = p.clone();
-                v.settings.polarized = true;
-                v
-            };
-            let rv = reflect(&pv, policy, &user).map_err(|e| e.to_string())?;
-            let rs = reflect(&scalar_twin(&p), policy, &user).map_err(|e| e.to_string())?;
-            Ok(pairs
-                .iter()
-                .map(|&(mu0, mu)| {
-                    let fv = brdf_at(&rv, mu0, mu, phi_o_deg)[0][0];
-                    let fs = brdf_at(&rs, mu0, mu, phi_o_deg)[0][0];
-                    ErrorSample {
-                        tau: tau_value(t),
-                        mu0,
-                        mu,
-                        phi_o_deg,
-                        f_vector: fv,
-                        f_scalar: fs,
-                        e: scalar_error(fs, fv),
-                    }
-                })
-                .collect())
-        })
-        .collect();
-    per_tau.into_iter().flatten_ok()
+    per_thickness(problem, taus, |t, p| {
+        let pv = {
+            let mut v = p.clone();
+            v.settings.polarized = true;
+            v
+        };
+        let rv = reflect(&pv, policy, &user).map_err(|e| e.to_string())?;
+        let rs = reflect(&scalar_twin(p), policy, &user).map_err(|e| e.to_string())?;
+        Ok(pairs
+            .iter()
+            .map(|&(mu0, mu)| {
+                let fv = brdf_at(&rv, mu0, mu, phi_o_deg)[0][0];
+                let fs = brdf_at(&rs, mu0, mu, phi_o_deg)[0][0];
+                ErrorSample {
+                    tau: tau_value(t),
+                    mu0,
+                    mu,
+                    phi_o_deg,
+                    f_vector: fv,
+                    f_scalar: fs,
+                    e: scalar_error(fs, fv),
+                }
+            })
+            .collect())
+    })
 }
 
 /// One outgoing direction of a lobe, for unpolarized incident light.
@@ -443,19 +428,23 @@ pub fn lobe_map(
     Ok(out)
 }
 
-/// Flatten per-thickness results, keeping the first error.
-trait FlattenOk<T> {
-    fn flatten_ok(self) -> Result<Vec<T>, String>;
-}
-
-impl<T, I: Iterator<Item = Result<Vec<T>, String>>> FlattenOk<T> for I {
-    fn flatten_ok(self) -> Result<Vec<T>, String> {
-        let mut out = Vec::new();
-        for part in self {
-            out.extend(part?);
-        }
-        Ok(out)
+/// The samples of one solve per optical thickness of the top layer (in
+/// parallel, [`with_top_thickness`]): `samples(τ, problem at τ)`, in the
+/// order of `taus`; the first error wins.
+fn per_thickness<T: Send>(
+    problem: &Problem,
+    taus: &[Thickness],
+    samples: impl Fn(Thickness, &Problem) -> Result<Vec<T>, String> + Sync,
+) -> Result<Vec<T>, String> {
+    let per_tau: Vec<Result<Vec<T>, String>> = taus
+        .par_iter()
+        .map(|&t| samples(t, &with_top_thickness(problem, t)?))
+        .collect();
+    let mut out = Vec::new();
+    for part in per_tau {
+        out.extend(part?);
     }
+    Ok(out)
 }
 
 #[cfg(test)]

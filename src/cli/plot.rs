@@ -29,24 +29,33 @@ use serde_json::{Value, json};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+/// The paper whose figures these are, under each subcommand's help.
+const COLLIN_2014: &str = "Collin et al. 2014: C. Collin, S. Pattanaik, P. LiKamWa, K. Bouatouch, \
+    \"Computation of Polarized Subsurface BRDF for Rendering\", Graphics Interface 2014.";
+
 /// The plot subcommands.
 #[derive(Debug, Subcommand)]
 pub enum PlotCommand {
     /// Degree of polarization against outgoing μ for incident μ0, one curve per
-    /// optical thickness of the top layer (seed Fig. 8). A table (--table) gives
-    /// one curve at its own thickness.
+    /// optical thickness of the top layer (Fig. 8 of Collin et al. 2014). A table
+    /// (--table) gives one curve at its own thickness.
+    #[command(after_help = COLLIN_2014)]
     DopVsMu(DopVsMuArgs),
     /// Degree of polarization against the top layer's optical thickness for
-    /// several incident Stokes vectors (seed Fig. 4). Needs a spec: a table
-    /// holds one thickness only.
+    /// several incident Stokes vectors (Fig. 4 of Collin et al. 2014). Needs a
+    /// spec: a table holds one thickness only.
+    #[command(after_help = COLLIN_2014)]
     DopVsTau(DopVsTauArgs),
     /// Error of the scalar RTE, e = 1 − F_s/F_v of the (1,1) element, against the
-    /// top layer's optical thickness, per spec and (μ0, μ) pair (seed Fig. 7).
-    /// Needs specs: each is solved polarized and scalar with the same settings.
+    /// top layer's optical thickness, per spec and (μ0, μ) pair (Fig. 7 of
+    /// Collin et al. 2014). Needs specs: each is solved polarized and scalar
+    /// with the same settings.
+    #[command(after_help = COLLIN_2014)]
     ScalarError(ScalarErrorArgs),
     /// BRDF (f11) and DOP lobes in the plane of incidence, and both over the
     /// outgoing hemisphere as polar maps (STEM-map.*), one per spec or table
-    /// (seed Fig. 13).
+    /// (Fig. 13 of Collin et al. 2014).
+    #[command(after_help = COLLIN_2014)]
     Lobe(LobeArgs),
 }
 
@@ -131,7 +140,8 @@ pub struct DopVsTauArgs {
     /// Outgoing azimuth (deg, φ_i = 0; 180 = mirror side).
     #[arg(long, allow_negative_numbers = true, default_value_t = 180.0)]
     pub phi_o_deg: f64,
-    /// Incident Stokes vectors I:Q:U:V, comma separated (default: the four of seed Fig. 4).
+    /// Incident Stokes vectors I:Q:U:V, comma separated (default: the four of
+    /// Fig. 4 of Collin et al. 2014).
     #[arg(long, default_value = "1:1:0:0,1:0:1:0,1:0:0:1,1:0:0:0")]
     pub stokes: String,
     #[command(flatten)]

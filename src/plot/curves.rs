@@ -1,11 +1,16 @@
-//! The plotted quantities as numbers (pure: no files, no drawing).
+//! The plotted quantities as numbers (pure: no files, no drawing), after
+//! Collin, Pattanaik, LiKamWa and Bouatouch, "Computation of Polarized
+//! Subsurface BRDF for Rendering", Graphics Interface 2014 ("Collin et al.
+//! 2014" below).
 //!
-//! * Degree of polarization of the reflected light, seed eq. (1):
+//! * Degree of polarization of the reflected light, Collin et al. 2014
+//!   eq. (1):
 //!   `DOP = √(Q² + U² + V²) / I` of `L = f · E` (conventions §6: `f` the
 //!   Mueller BRDF, `E` the incident Stokes irradiance, row = outgoing Stokes).
-//! * Error of the scalar RTE, seed §4.3: `e = 1 − F_s / F_v` with `F_v` the
-//!   (1,1) element of the polarized BRDF and `F_s` the BRDF of the scalar
-//!   RTE (same layers, `a1` only), at the same directions and settings.
+//! * Error of the scalar RTE, Collin et al. 2014 §4.3: `e = 1 − F_s / F_v`
+//!   with `F_v` the (1,1) element of the polarized BRDF and `F_s` the BRDF
+//!   of the scalar RTE (same layers, `a1` only), at the same directions and
+//!   settings.
 //! * Samples of a BRDF along outgoing cosines, optical thicknesses, the plane
 //!   of incidence and the hemisphere, from a direct solve at user cosines
 //!   ([`solver::reflection`]) or from a table ([`Table::eval`]).
@@ -14,7 +19,7 @@
 //! direction has azimuth `φ_i = 0`; an outgoing azimuth `φ_o = 180°` is the
 //! mirror (forward) side of the plane of incidence, `φ_o = 0` the
 //! backscattering side. Cosines `μ0` (incident) and `μ` (outgoing) are those
-//! of the seed's figures (the seed writes `μ_inc = −0.6` for the downward
+//! of the paper's figures (it writes `μ_inc = −0.6` for the downward
 //! beam; here `μ0 = 0.6`).
 
 use crate::brdf::angles::dphi_prop_rad;
@@ -27,10 +32,10 @@ use rayon::prelude::*;
 /// Unpolarized incident light.
 pub const UNPOLARIZED: [f64; 4] = [1.0, 0.0, 0.0, 0.0];
 
-/// The incident Stokes vectors of seed Fig. 4, top to bottom: polarized
-/// along `x` of the incident meridian frame (the seed's "horizontal"),
-/// at +45°, right circular, unpolarized.
-pub const SEED_FIG4_STOKES: [[f64; 4]; 4] = [
+/// The incident Stokes vectors of Fig. 4 of Collin et al. 2014, top to
+/// bottom: polarized along `x` of the incident meridian frame (the paper's
+/// "horizontal"), at +45°, right circular, unpolarized.
+pub const FIG4_STOKES: [[f64; 4]; 4] = [
     [1.0, 1.0, 0.0, 0.0],
     [1.0, 0.0, 1.0, 0.0],
     [1.0, 0.0, 0.0, 1.0],
@@ -43,13 +48,14 @@ pub fn reflected(f: &Mueller, e: [f64; 4]) -> [f64; 4] {
     apply(f, e)
 }
 
-/// Degree of polarization of the reflected light, seed eq. (1), for the
-/// incident Stokes irradiance `e`; 0 where nothing is reflected.
+/// Degree of polarization of the reflected light, Collin et al. 2014
+/// eq. (1), for the incident Stokes irradiance `e`; 0 where nothing is
+/// reflected.
 pub fn dop(f: &Mueller, e: [f64; 4]) -> f64 {
     degree_of_polarization(reflected(f, e))
 }
 
-/// The scalar-RTE error of seed §4.3, `e = 1 − F_s / F_v`.
+/// The scalar-RTE error of Collin et al. 2014 §4.3, `e = 1 − F_s / F_v`.
 pub fn scalar_error(f_scalar: f64, f_vector: f64) -> f64 {
     1.0 - f_scalar / f_vector
 }
@@ -191,7 +197,7 @@ pub struct DopSample {
     pub f11: f64,
     /// Reflected Stokes radiance per unit irradiance, `f · E` (1/sr).
     pub stokes_out: [f64; 4],
-    /// Its degree of polarization, seed eq. (1).
+    /// Its degree of polarization, Collin et al. 2014 eq. (1).
     pub dop: f64,
 }
 
@@ -212,8 +218,9 @@ impl DopSample {
     }
 }
 
-/// Seed Fig. 8: DOP against outgoing `μ` at incident `μ0`, one solve per
-/// thickness (in parallel), every `(μ, φ_o)` of `mus × phis_deg`.
+/// Fig. 8 of Collin et al. 2014: DOP against outgoing `μ` at incident `μ0`,
+/// one solve per thickness (in parallel), every `(μ, φ_o)` of
+/// `mus × phis_deg`.
 pub fn dop_vs_mu(
     problem: &Problem,
     policy: StreamPolicy,
@@ -224,25 +231,21 @@ pub fn dop_vs_mu(
     e: [f64; 4],
 ) -> Result<Vec<DopSample>, String> {
     let user = distinct(mus.iter().copied().chain([mu0]));
-    let per_tau: Vec<Result<Vec<DopSample>, String>> = taus
-        .par_iter()
-        .map(|&t| {
-            let p = with_top_thickness(problem, t)?;
-            let r = reflect(&p, policy, &user).map_err(|e| e.to_string())?;
-            let mut out = Vec::new();
-            for &phi in phis_deg {
-                for &mu in mus {
-                    let f = brdf_at(&r, mu0, mu, phi);
-                    out.push(DopSample::new(tau_value(t), e, mu0, mu, phi, &f));
-                }
+    per_thickness(problem, taus, |t, p| {
+        let r = reflect(p, policy, &user).map_err(|e| e.to_string())?;
+        let mut out = Vec::new();
+        for &phi in phis_deg {
+            for &mu in mus {
+                let f = brdf_at(&r, mu0, mu, phi);
+                out.push(DopSample::new(tau_value(t), e, mu0, mu, phi, &f));
             }
-            Ok(out)
-        })
-        .collect();
-    per_tau.into_iter().flatten_ok()
+        }
+        Ok(out)
+    })
 }
 
-/// Seed Fig. 8 from a table (one thickness: the table's own, `tau`).
+/// Fig. 8 of Collin et al. 2014 from a table (one thickness: the table's
+/// own, `tau`).
 pub fn dop_vs_mu_table(
     table: &Table,
     wavelength_nm: Option<f64>,
@@ -262,9 +265,9 @@ pub fn dop_vs_mu_table(
     Ok(out)
 }
 
-/// Seed Fig. 4: DOP against the top layer's optical thickness for several
-/// incident Stokes vectors at one direction pair; one solve per thickness
-/// (in parallel) serves every incident state.
+/// Fig. 4 of Collin et al. 2014: DOP against the top layer's optical
+/// thickness for several incident Stokes vectors at one direction pair; one
+/// solve per thickness (in parallel) serves every incident state.
 pub fn dop_vs_tau(
     problem: &Problem,
     policy: StreamPolicy,
@@ -275,19 +278,14 @@ pub fn dop_vs_tau(
     stokes: &[[f64; 4]],
 ) -> Result<Vec<DopSample>, String> {
     let user = distinct([mu0, mu]);
-    let per_tau: Vec<Result<Vec<DopSample>, String>> = taus
-        .par_iter()
-        .map(|&t| {
-            let p = with_top_thickness(problem, t)?;
-            let r = reflect(&p, policy, &user).map_err(|e| e.to_string())?;
-            let f = brdf_at(&r, mu0, mu, phi_o_deg);
-            Ok(stokes
-                .iter()
-                .map(|&e| DopSample::new(tau_value(t), e, mu0, mu, phi_o_deg, &f))
-                .collect())
-        })
-        .collect();
-    per_tau.into_iter().flatten_ok()
+    per_thickness(problem, taus, |t, p| {
+        let r = reflect(p, policy, &user).map_err(|e| e.to_string())?;
+        let f = brdf_at(&r, mu0, mu, phi_o_deg);
+        Ok(stokes
+            .iter()
+            .map(|&e| DopSample::new(tau_value(t), e, mu0, mu, phi_o_deg, &f))
+            .collect())
+    })
 }
 
 /// One sample of a scalar-error curve.
@@ -309,9 +307,10 @@ pub struct ErrorSample {
     pub e: f64,
 }
 
-/// Seed Fig. 7: `e = 1 − F_s/F_v` against the top layer's optical thickness
-/// for `(μ0, μ)` pairs at outgoing azimuth `phi_o_deg`; per thickness one
-/// vector and one scalar solve with the same settings (in parallel).
+/// Fig. 7 of Collin et al. 2014: `e = 1 − F_s/F_v` against the top layer's
+/// optical thickness for `(μ0, μ)` pairs at outgoing azimuth `phi_o_deg`;
+/// per thickness one vector and one scalar solve with the same settings (in
+/// parallel).
 pub fn scalar_error_vs_tau(
     problem: &Problem,
     policy: StreamPolicy,
@@ -320,36 +319,31 @@ pub fn scalar_error_vs_tau(
     taus: &[Thickness],
 ) -> Result<Vec<ErrorSample>, String> {
     let user = distinct(pairs.iter().flat_map(|&(a, b)| [a, b]));
-    let per_tau: Vec<Result<Vec<ErrorSample>, String>> = taus
-        .par_iter()
-        .map(|&t| {
-            let p = with_top_thickness(problem, t)?;
-            let pv = {
-                let mut v = p.clone();
-                v.settings.polarized = true;
-                v
-            };
-            let rv = reflect(&pv, policy, &user).map_err(|e| e.to_string())?;
-            let rs = reflect(&scalar_twin(&p), policy, &user).map_err(|e| e.to_string())?;
-            Ok(pairs
-                .iter()
-                .map(|&(mu0, mu)| {
-                    let fv = brdf_at(&rv, mu0, mu, phi_o_deg)[0][0];
-                    let fs = brdf_at(&rs, mu0, mu, phi_o_deg)[0][0];
-                    ErrorSample {
-                        tau: tau_value(t),
-                        mu0,
-                        mu,
-                        phi_o_deg,
-                        f_vector: fv,
-                        f_scalar: fs,
-                        e: scalar_error(fs, fv),
-                    }
-                })
-                .collect())
-        })
-        .collect();
-    per_tau.into_iter().flatten_ok()
+    per_thickness(problem, taus, |t, p| {
+        let pv = {
+            let mut v = p.clone();
+            v.settings.polarized = true;
+            v
+        };
+        let rv = reflect(&pv, policy, &user).map_err(|e| e.to_string())?;
+        let rs = reflect(&scalar_twin(p), policy, &user).map_err(|e| e.to_string())?;
+        Ok(pairs
+            .iter()
+            .map(|&(mu0, mu)| {
+                let fv = brdf_at(&rv, mu0, mu, phi_o_deg)[0][0];
+                let fs = brdf_at(&rs, mu0, mu, phi_o_deg)[0][0];
+                ErrorSample {
+                    tau: tau_value(t),
+                    mu0,
+                    mu,
+                    phi_o_deg,
+                    f_vector: fv,
+                    f_scalar: fs,
+                    e: scalar_error(fs, fv),
+                }
+            })
+            .collect())
+    })
 }
 
 /// One outgoing direction of a lobe, for unpolarized incident light.
@@ -443,19 +437,23 @@ pub fn lobe_map(
     Ok(out)
 }
 
-/// Flatten per-thickness results, keeping the first error.
-trait FlattenOk<T> {
-    fn flatten_ok(self) -> Result<Vec<T>, String>;
-}
-
-impl<T, I: Iterator<Item = Result<Vec<T>, String>>> FlattenOk<T> for I {
-    fn flatten_ok(self) -> Result<Vec<T>, String> {
-        let mut out = Vec::new();
-        for part in self {
-            out.extend(part?);
-        }
-        Ok(out)
+/// The samples of one solve per optical thickness of the top layer (in
+/// parallel, [`with_top_thickness`]): `samples(τ, problem at τ)`, in the
+/// order of `taus`; the first error wins.
+fn per_thickness<T: Send>(
+    problem: &Problem,
+    taus: &[Thickness],
+    samples: impl Fn(Thickness, &Problem) -> Result<Vec<T>, String> + Sync,
+) -> Result<Vec<T>, String> {
+    let per_tau: Vec<Result<Vec<T>, String>> = taus
+        .par_iter()
+        .map(|&t| samples(t, &with_top_thickness(problem, t)?))
+        .collect();
+    let mut out = Vec::new();
+    for part in per_tau {
+        out.extend(part?);
     }
+    Ok(out)
 }
 
 #[cfg(test)]
@@ -483,7 +481,7 @@ mod tests {
     #[test]
     fn dop_of_pure_states_and_mixtures() {
         let id = crate::physics::stokes::IDENTITY;
-        for e in SEED_FIG4_STOKES.iter().take(3) {
+        for e in FIG4_STOKES.iter().take(3) {
             assert!((dop(&id, *e) - 1.0).abs() < 1e-15);
         }
         assert_eq!(dop(&id, UNPOLARIZED), 0.0);
@@ -600,7 +598,7 @@ mod tests {
             0.5,
             180.0,
             &taus,
-            &SEED_FIG4_STOKES,
+            &FIG4_STOKES,
         )
         .unwrap();
         assert_eq!(rows.len(), 12);

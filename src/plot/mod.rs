@@ -1,6 +1,10 @@
-//! Plots of BRDF results (`polbrdf plot ...`): the seed's figures as SVG/PNG
-//! with the plotted numbers next to them as CSV (issue 7).
+//! Plots of BRDF results (`polbrdf plot ...`): the figures of Collin,
+//! Pattanaik, LiKamWa and Bouatouch, "Computation of Polarized Subsurface
+//! BRDF for Rendering" (Graphics Interface 2014) as SVG/PNG with the plotted
+//! numbers next to them as CSV (issue 7).
 //!
+//! * [`figures`]: each figure from specs or tables: spec edits, solves,
+//!   curves, titles, axes, CSV columns and a summary; no files.
 //! * [`curves`]: the plotted quantities as numbers (DOP, scalar-RTE error,
 //!   lobe samples) from direct solves or BRDF tables; pure.
 //! * [`figure`]: what a figure shows (panels, curves, maps) as plain data and
@@ -12,3 +16,4 @@ pub mod csv;
 pub mod curves;
 pub mod draw;
 pub mod figure;
+pub mod figures;

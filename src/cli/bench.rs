@@ -89,7 +89,7 @@ fn table_f11(problem: &Problem) -> Result<Vec<f64>, String> {
     let (theta, phi) = seed_grid();
     let mu: Vec<f64> = theta
         .iter()
-        .map(|&t| super::solve::mu_of_theta_deg(t))
+        .map(|&t| crate::brdf::angles::mu_of_theta_deg(t))
         .collect();
     let set = super::solve::MuSet::new(mu.iter().cloned());
     let refl = solver::reflection(problem, &set.mu).map_err(|e| e.to_string())?;

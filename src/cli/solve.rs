@@ -1,14 +1,11 @@
 //! `polbrdf solve SPEC.json [--points POINTS.json] [--field FIELD.json]`.
 
+use crate::brdf::angles::{MU_FLOOR, dphi_prop_rad, mu_of_theta_deg};
 use crate::solver::{self, Base, fourier_sum};
 use crate::spec;
 use serde::{Deserialize, Serialize};
 use serde_json::{Value, json};
 use std::time::Instant;
-
-/// Smallest direction cosine evaluated; directions closer to the horizon are
-/// evaluated at this cosine (docs/conventions.md §5).
-pub const MU_FLOOR: f64 = 1e-6;
 
 /// One direction pair in the graphics convention (degrees, both directions
 /// pointing away from the surface).
@@ -43,11 +40,6 @@ struct FieldFile {
 
 fn unpolarized() -> [f64; 4] {
     [1.0, 0.0, 0.0, 0.0]
-}
-
-/// Cosine of a polar angle in degrees, floored at [`MU_FLOOR`].
-pub fn mu_of_theta_deg(theta_deg: f64) -> f64 {
-    theta_deg.to_radians().cos().clamp(MU_FLOOR, 1.0)
 }
 
 /// Sorted distinct cosines and a lookup.
@@ -173,8 +165,7 @@ pub fn run(
             for p in &points {
                 let iu = set.index(mu_of_theta_deg(p.theta_o_deg));
                 let iv = set.index(mu_of_theta_deg(p.theta_i_deg));
-                let dphi = (p.phi_o_deg - p.phi_i_deg - 180.0).to_radians();
-                let m = refl.brdf(iu, iv, dphi);
+                let m = refl.brdf(iu, iv, dphi_prop_rad(p.phi_i_deg, p.phi_o_deg));
                 pts.push(json!({
                     "theta_i_deg": p.theta_i_deg, "phi_i_deg": p.phi_i_deg,
                     "theta_o_deg": p.theta_o_deg, "phi_o_deg": p.phi_o_deg,

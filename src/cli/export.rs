@@ -171,8 +171,11 @@ pub fn run(a: &ExportArgs) -> Result<Value, String> {
     }
 }
 
-/// Direction pairs of the resampling check printed by `--format mitsuba`.
-const CHECK_PAIRS: usize = 2000;
+/// The CLI's way to a finer grid, for [`mitsuba::export_warnings`].
+fn finer_grid_flags() -> String {
+    let n = mitsuba::FINER_THETA_NODES;
+    format!("--theta-d-nodes {n} --theta-h-nodes {n} (1 deg steps; 4 times the file size)")
+}
 
 fn export_mitsuba(a: &ExportArgs, table: &Table) -> Result<Value, String> {
     if a.points.is_some() || a.theta_i_deg.is_some() || a.wavelength_nm.is_some() {
@@ -189,14 +192,12 @@ fn export_mitsuba(a: &ExportArgs, table: &Table) -> Result<Value, String> {
             Some(BelowHorizonArg::Zero) => BelowHorizon::Zero,
         },
     };
-    let mirror = table.wavelengths.iter().any(|w| w.specular.is_some());
-    if mirror {
-        eprintln!(
-            "polbrdf: warning: the table's base is a mirror; its specular delta cannot be represented in a measured_polarized table and is left out (only the diffuse BRDF is exported; docs/mitsuba.md)"
-        );
-    }
     let mt = mitsuba::build(table, &opts).map_err(|e| e.to_string())?;
-    let check = mitsuba::resampling_error(table, &mt, CHECK_PAIRS, 1).map_err(|e| e.to_string())?;
+    let check = mitsuba::resampling_error(table, &mt, mitsuba::CHECK_PAIRS, mitsuba::CHECK_SEED)
+        .map_err(|e| e.to_string())?;
+    for w in mitsuba::export_warnings(table, &check, &finer_grid_flags()) {
+        eprintln!("polbrdf: warning: {w}");
+    }
     let bytes = mt.to_bytes();
     write(&a.output, &bytes)?;
     let meta: Value = serde_json::from_str(&mt.metadata).expect("metadata JSON");

@@ -2,7 +2,9 @@
 //! through the real binary: each result says what was computed and carries
 //! nothing else; `--table` reports the table build per wavelength; the npy
 //! export prints a short summary; a spec over the service's stream cap is
-//! refused unless `--max-streams` raises it.
+//! refused unless `--max-streams` raises it; stderr stays empty without a
+//! terminal, and on a terminal (a pseudo-terminal from util-linux `script`)
+//! a one-line summary appears while stdout is unchanged.
 
 mod common;
 
@@ -40,6 +42,18 @@ fn keys(v: &Value) -> Vec<String> {
     let mut k: Vec<String> = v.as_object().unwrap().keys().cloned().collect();
     k.sort();
     k
+}
+
+/// Drop the timings (they differ from run to run) before comparing outputs.
+fn without_timings(v: &mut Value) {
+    match v {
+        Value::Object(m) => {
+            m.remove("wall_time_ms");
+            m.values_mut().for_each(without_timings);
+        }
+        Value::Array(a) => a.iter_mut().for_each(without_timings),
+        _ => {}
+    }
 }
 
 /// `solve --table` alone: every result lists "table" and only it, with the
@@ -245,4 +259,88 @@ fn stream_cap_is_the_services_unless_raised() {
         err.contains("256 streams") && err.contains("--max-streams 128"),
         "{err}"
     );
+}
+
+/// Single-quoted for `sh -c`.
+fn sh_quote(s: &str) -> String {
+    format!("'{}'", s.replace('\'', r"'\''"))
+}
+
+/// On a terminal (util-linux `script` gives the command a pseudo-terminal;
+/// stdout goes to a file): a one-line summary on the terminal naming what
+/// was solved, and stdout the same JSON as without a terminal, whose
+/// stderr is empty.
+#[test]
+fn a_terminal_gets_a_summary_and_stdout_is_unchanged() {
+    let has_script = std::process::Command::new("script")
+        .arg("--version")
+        .output()
+        .is_ok_and(|o| o.status.success());
+    if !has_script {
+        eprintln!(
+            "SKIPPED a_terminal_gets_a_summary_and_stdout_is_unchanged: util-linux `script` is missing (no pseudo-terminal)"
+        );
+        return;
+    }
+    let d = scratch_dir("cli-output-tty");
+    let s = write(&d, "spec.json", &rayleigh(8, Some(&[500.0, 600.0])));
+    let p = write(&d, "points.json", &points());
+    let bin = env!("CARGO_BIN_EXE_polbrdf");
+
+    let plain_table = d.join("plain.pbrdf").to_string_lossy().into_owned();
+    let (code, plain, err) = run(&["solve", &s, "--points", &p, "--table", &plain_table]);
+    assert_eq!(code, 0, "{err}");
+    assert!(err.is_empty(), "stderr without a terminal: {err}");
+
+    let tty_table = d.join("tty.pbrdf").to_string_lossy().into_owned();
+    let stdout_file = d.join("stdout.json").to_string_lossy().into_owned();
+    let command = format!(
+        "{} solve {} --points {} --table {} > {}",
+        sh_quote(bin),
+        sh_quote(&s),
+        sh_quote(&p),
+        sh_quote(&tty_table),
+        sh_quote(&stdout_file)
+    );
+    let o = std::process::Command::new("script")
+        .args(["-qec", &command, "/dev/null"])
+        .stdin(std::process::Stdio::null())
+        .output()
+        .unwrap();
+    let terminal = String::from_utf8_lossy(&o.stdout).into_owned();
+    assert!(o.status.success(), "script: {terminal}");
+    // The bar is drawn and erased with carriage returns and escapes; the
+    // summary is the last thing on the terminal, one line.
+    let last = terminal
+        .split(['\r', '\n'])
+        .map(|l| l.trim_start_matches("\x1b[2K"))
+        .rfind(|l| !l.trim().is_empty())
+        .unwrap_or_default()
+        .to_string();
+    assert!(
+        last.starts_with("polbrdf: solved 2 wavelengths at 2 direction pairs, 8 streams"),
+        "{last:?} in {terminal:?}"
+    );
+    assert!(
+        last.contains(&format!("table {tty_table} at 2 wavelengths")),
+        "{last:?}"
+    );
+    assert!(last.contains("error estimate at most"), "{last:?}");
+    assert!(
+        !terminal.contains('{'),
+        "JSON on the terminal: {terminal:?}"
+    );
+
+    let mut a: Value = serde_json::from_str(&plain).unwrap();
+    let mut b: Value =
+        serde_json::from_str(&std::fs::read_to_string(&stdout_file).unwrap()).unwrap();
+    without_timings(&mut a);
+    without_timings(&mut b);
+    // The files differ in name and in the timings of their metadata.
+    for v in [&mut a, &mut b] {
+        for k in ["file", "bytes", "sha256_of_file"] {
+            v["table"][k] = json!(null);
+        }
+    }
+    assert_eq!(a, b, "stdout differs on a terminal");
 }

@@ -7,6 +7,7 @@ pub mod eval;
 pub mod export;
 pub mod mie;
 pub mod plot;
+pub mod progress;
 pub mod render;
 pub mod serve;
 pub mod solve;
@@ -40,6 +41,9 @@ enum Command {
     /// "wavelengths"}). Nothing that was not computed appears, not even as an
     /// empty list, 0 or null; without --points, --field or --table the spec is
     /// only checked ("computed": []).
+    ///
+    /// With stderr a terminal, a progress bar while solving and a one-line
+    /// summary at the end go to stderr; otherwise stderr stays empty on success.
     Solve(solve::SolveArgs),
     /// Evaluate a BRDF table at one direction pair.
     Eval(eval::EvalArgs),

@@ -29,6 +29,7 @@
 //! describes the file. Without `--points`, `--field` or `--table` the spec
 //! is only checked (`computed: []`).
 
+use super::progress::Progress;
 use crate::brdf::angles::{MU_FLOOR, dphi_prop_rad, mu_of_theta_deg};
 use crate::solver::{self, Base, fourier_sum};
 use crate::spec::{self, Spec, SpecError};
@@ -194,8 +195,11 @@ fn read_field(path: &str) -> Result<FieldFile, String> {
     Ok(f)
 }
 
-/// Run `solve` and return the JSON document (module doc).
+/// Run `solve` and return the JSON document (module doc); with stderr a
+/// terminal, a progress bar while solving and a one-line summary at the end
+/// ([`summary_line`]).
 pub fn run(a: &SolveArgs) -> Result<Value, String> {
+    let started = Instant::now();
     let spec_path = a.spec.as_str();
     let text = std::fs::read_to_string(spec_path).map_err(|e| format!("{spec_path}: {e}"))?;
     let spec = spec::parse(&text).map_err(|e| format!("{spec_path}: {e}"))?;
@@ -208,12 +212,15 @@ pub fn run(a: &SolveArgs) -> Result<Value, String> {
 
     let wavelengths = spec::wavelengths(&spec);
     let direct = points.is_some() || field.is_some();
+    let stages = wavelengths.len() * (usize::from(direct) + usize::from(a.table.is_some()));
+    let progress = Progress::new(stages);
 
     let mut results = Vec::new();
-    for &wl in &wavelengths {
+    for (k, &wl) in wavelengths.iter().enumerate() {
         let mut out = serde_json::Map::new();
         out.insert("wavelength_nm".into(), json!(wl));
         if direct {
+            progress.stage(k, &stage_message("solving", wl, k, wavelengths.len()));
             let solved = solve_direct(
                 &spec,
                 spec_path,
@@ -221,7 +228,7 @@ pub fn run(a: &SolveArgs) -> Result<Value, String> {
                 points.as_deref(),
                 field.as_ref(),
                 a.max_streams,
-                &|_| {},
+                &progress.within(k),
             )?;
             out.extend(solved);
         }
@@ -230,9 +237,17 @@ pub fn run(a: &SolveArgs) -> Result<Value, String> {
     let mut doc = json!({ "results": results });
 
     if let Some(path) = &a.table {
+        let offset = if direct { wavelengths.len() } else { 0 };
+        let on_progress = |k: usize, total: usize, x: f64| {
+            progress.stage(
+                offset + k,
+                &stage_message("building the table", wavelengths[k], k, total),
+            );
+            progress.within(offset + k)(x);
+        };
         let options = crate::brdf::table::BuildOptions {
             max_streams: a.max_streams,
-            on_progress: &|_, _, _| {},
+            on_progress: &on_progress,
         };
         let (file, table) = super::export::write_table(&spec, spec_path, path, &options)?;
         for r in doc["results"].as_array_mut().expect("results") {
@@ -262,7 +277,15 @@ pub fn run(a: &SolveArgs) -> Result<Value, String> {
             .collect();
         r["computed"] = json!(computed);
     }
+    progress.finish(summary_line(&doc, started.elapsed().as_secs_f64()));
     Ok(doc)
+}
+
+fn stage_message(what: &str, wl: Option<f64>, k: usize, total: usize) -> String {
+    match wl {
+        Some(w) => format!("{what}: {w} nm ({}/{total})", k + 1),
+        None => what.to_string(),
+    }
 }
 
 /// The direct solve of one wavelength: `points` and `specular` (with
@@ -390,6 +413,75 @@ fn solve_direct(
     Ok(out)
 }
 
+/// The one-line human summary of a `solve` document (printed on stderr when
+/// it is a terminal): `polbrdf: solved W wavelength(s) [at P direction
+/// pair(s)] [(internal field)], S streams, M Fourier orders[, error estimate
+/// [at most] E of max f11][; table FILE at W wavelength(s), ...]; T s`, with
+/// ranges `a-b` where the wavelengths differ. `None` when nothing was
+/// computed.
+pub fn summary_line(doc: &Value, seconds: f64) -> Option<String> {
+    let results = doc["results"].as_array()?;
+    let n = results.len();
+    let wavelengths = if n == 1 {
+        "1 wavelength".to_string()
+    } else {
+        format!("{n} wavelengths")
+    };
+    let mut parts = Vec::new();
+    let solvers: Vec<&Value> = results.iter().filter_map(|r| r.get("solver")).collect();
+    if !solvers.is_empty() {
+        let mut what = format!("solved {wavelengths}");
+        if let Some(p) = results[0].get("points").and_then(Value::as_array) {
+            let s = if p.len() == 1 { "" } else { "s" };
+            what += &format!(" at {} direction pair{s}", p.len());
+        }
+        if results[0].get("field").is_some() {
+            what += " (internal field)";
+        }
+        parts.push(describe(&what, &solvers));
+    }
+    let tables: Vec<&Value> = results.iter().filter_map(|r| r.get("table")).collect();
+    if !tables.is_empty() {
+        let file = doc["table"]["file"].as_str().unwrap_or("?");
+        parts.push(describe(&format!("table {file} at {wavelengths}"), &tables));
+    }
+    if parts.is_empty() {
+        return None;
+    }
+    Some(format!("polbrdf: {}; {seconds:.2} s", parts.join("; ")))
+}
+
+/// `what, S streams, M Fourier orders, error estimate E of max f11` over the
+/// blocks of several wavelengths (ranges where they differ, the largest
+/// estimate).
+fn describe(what: &str, blocks: &[&Value]) -> String {
+    let range = |key: &str| -> Option<String> {
+        let v: Vec<u64> = blocks.iter().filter_map(|b| b[key].as_u64()).collect();
+        let (lo, hi) = (v.iter().min()?, v.iter().max()?);
+        Some(if lo == hi {
+            format!("{lo}")
+        } else {
+            format!("{lo}-{hi}")
+        })
+    };
+    let mut s = what.to_string();
+    if let Some(r) = range("streams") {
+        s += &format!(", {r} streams");
+    }
+    if let Some(r) = range("fourier_orders") {
+        s += &format!(", {r} Fourier orders");
+    }
+    let estimates: Vec<f64> = blocks
+        .iter()
+        .filter_map(|b| b["error_estimate"]["max_err_f11"].as_f64())
+        .collect();
+    if let Some(e) = estimates.iter().cloned().reduce(f64::max) {
+        let bound = if estimates.len() > 1 { "at most " } else { "" };
+        s += &format!(", error estimate {bound}{e:.1e} of max f11");
+    }
+    s
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -424,5 +516,32 @@ mod tests {
             crate::http::config::Limits::default().max_streams
         );
         assert!(default_max_streams() <= spec::MAX_STREAMS);
+    }
+
+    #[test]
+    fn the_summary_names_what_was_computed() {
+        let doc = json!({"results": [
+            {"wavelength_nm": 450.0, "computed": ["points", "table"],
+             "points": [{}, {}], "specular": [],
+             "solver": {"streams": 16, "fourier_orders": 12, "error_estimate": {"max_err_f11": 3.1e-5}},
+             "table": {"streams": 16, "fourier_orders": 14, "error_estimate": {"max_err_f11": 2e-5}}},
+            {"wavelength_nm": 550.0, "computed": ["points", "table"],
+             "points": [{}, {}], "specular": [],
+             "solver": {"streams": 32, "fourier_orders": 11, "error_estimate": {"max_err_f11": 4.2e-5}},
+             "table": {"streams": 32, "fourier_orders": 13, "error_estimate": {"max_err_f11": 1e-5}}}],
+            "table": {"file": "t.pbrdf"}});
+        let s = summary_line(&doc, 1.234).unwrap();
+        assert_eq!(
+            s,
+            "polbrdf: solved 2 wavelengths at 2 direction pairs, 16-32 streams, 11-12 Fourier orders, error estimate at most 4.2e-5 of max f11; table t.pbrdf at 2 wavelengths, 16-32 streams, 13-14 Fourier orders, error estimate at most 2.0e-5 of max f11; 1.23 s"
+        );
+        let checked = json!({"results": [{"wavelength_nm": null, "computed": []}]});
+        assert_eq!(summary_line(&checked, 0.1), None);
+        let one = json!({"results": [{"computed": ["field"], "field": [],
+            "solver": {"streams": 8, "fourier_orders": 5}}]});
+        assert_eq!(
+            summary_line(&one, 0.5).unwrap(),
+            "polbrdf: solved 1 wavelength (internal field), 8 streams, 5 Fourier orders; 0.50 s"
+        );
     }
 }

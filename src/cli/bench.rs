@@ -55,8 +55,9 @@ pub fn run(cmd: &BenchCommand) -> Result<Value, String> {
     }
 }
 
-/// The table size of Collin et al. 2014 (Graphics Interface): 51 polar angles (incident and outgoing) at the
-/// midpoints of 51 equal steps of 0..90° (0.88°..89.12°: the horizon itself,
+/// The table size of Collin et al. 2014 (Graphics Interface): 51 polar
+/// angles (incident and outgoing) at the midpoints of 51 equal steps of
+/// 0..90° (0.88°..89.12°: the horizon itself,
 /// where the single-scattering BRDF diverges like 1/(μ + μ0), is left out so
 /// that "relative to max f11" means something) and 61 azimuths 0..360°.
 pub fn seed_grid() -> (Vec<f64>, Vec<f64>) {

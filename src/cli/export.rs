@@ -16,7 +16,8 @@ use sha2::{Digest, Sha256};
 /// Export formats.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum ExportFormat {
-    /// Dense (W, Ti, To, P, 4, 4) array on the 51 x 51 x 61 grid of Collin et al. 2014 (Graphics Interface).
+    /// Dense (W, Ti, To, P, 4, 4) array on the 51 x 51 x 61 grid of Collin et al.,
+    /// "Computation of Polarized Subsurface BRDF for Rendering" (GI 2014).
     Npy,
     /// Mueller matrices at the direction pairs of --points.
     Json,

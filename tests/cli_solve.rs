@@ -53,7 +53,7 @@ fn gs_spec(base: Value) -> Value {
     })
 }
 
-/// The seed's validation (§4.1): the BRDF from four Stokes inputs predicts
+/// The validation of Collin et al. 2014 (§4.1): the BRDF from four Stokes inputs predicts
 /// the field for a fifth. The field path (full doubling, internal field at
 /// tau = 0 for a beam of flux pi) and the BRDF path (top-only doubling,
 /// Chandrasekhar's relation) are independent code paths:

@@ -14,7 +14,7 @@ type M4 = [[f64; 4]; 4];
 
 /// Interpolation bound of the default grid relative to max f11
 /// (tests/brdf_interpolation.rs and docs/table-format.md: measured ≤ 2.1e-6
-/// for the seed's materials; 1e-5 leaves a factor ~5, ten times below the
+/// for the materials of Collin et al. 2014; 1e-5 leaves a factor ~5, ten times below the
 /// 1e-4 target).
 const INTERPOLATION_BOUND: f64 = 1e-5;
 

@@ -8,8 +8,8 @@
 //! `Δφ_prop = (φ_o − φ_i) − 180°` (0 = forward / mirror side).
 
 /// Smallest direction cosine evaluated: directions closer to the horizon are
-/// evaluated at this cosine (conventions §5; the same value as
-/// `cli::solve::MU_FLOOR`).
+/// evaluated at this cosine (conventions §5). The one definition: the table,
+/// the CLI and the renderer all use it.
 pub const MU_FLOOR: f64 = 1e-6;
 
 /// A 3-vector.
@@ -100,10 +100,15 @@ mod tests {
     use super::*;
 
     #[test]
-    fn floor_matches_the_cli() {
-        assert_eq!(MU_FLOOR, crate::cli::solve::MU_FLOOR);
+    fn cosines_are_floored_at_the_horizon_only() {
         assert_eq!(mu_of_theta_deg(90.0), MU_FLOOR);
+        // Past the horizon (rounding of an input) still the floor.
+        assert_eq!(mu_of_theta_deg(90.0 + 1e-9), MU_FLOOR);
         assert_eq!(mu_of_theta_deg(0.0), 1.0);
+        // Just above the floor's angle the cosine itself.
+        let theta = (2.0 * MU_FLOOR).acos().to_degrees();
+        assert!((mu_of_theta_deg(theta) - 2.0 * MU_FLOOR).abs() < 1e-15);
+        assert_eq!(dphi_prop_rad(10.0, 190.0), 0.0);
     }
 
     /// The frames are right-handed `(x, y, k)` with `k_in = −ω_i`,

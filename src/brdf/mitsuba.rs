@@ -70,7 +70,9 @@
 //!
 //! **Specular delta.** The specular term of a mirror base (conventions §6)
 //! is a Dirac delta and cannot be sampled on this grid: it is left out, and
-//! the file's metadata says so (`specular_delta`).
+//! the file's metadata says so (`specular_delta`); [`export_warnings`] says
+//! so to the user, with the resampling error when it is over
+//! [`RESAMPLING_WARNING`].
 
 use super::BrdfError;
 use super::angles::{Vec3, cross, dot, normalize};
@@ -503,7 +505,7 @@ fn metadata(table: &Table, opts: &MitsubaOptions, wvls: &[u16], resampled: bool)
             "exact: the table's five wavelengths"
         },
         "specular_delta": if mirror {
-            "NOT INCLUDED: the table's base is a mirror; its specular reflection is a Dirac delta (docs/conventions.md sec. 6) that a measured_polarized grid cannot represent. Only the diffuse part is in M; model the mirror separately (e.g. a Mitsuba conductor/dielectric layer) if it matters."
+            "NOT INCLUDED: the table's base is a mirror; its specular reflection is a Dirac delta (docs/conventions.md sec. 6) that a measured_polarized grid cannot represent. Only the diffuse part is in M; a renderer must add a delta lobe at the mirror direction with weight S = exp(-2 tau/mu_i) M_F(mu_i): tau the stack's optical thickness, M_F the base's Fresnel Mueller matrix at the light's cosine mu_i (docs/mitsuba.md)."
         } else {
             "none: the table has no mirror base"
         },
@@ -769,6 +771,54 @@ pub struct ResamplingError {
     pub max_f11_cos: f64,
     /// `max_abs / max_f11_cos`.
     pub relative: f64,
+    /// The same over the pairs with both polar angles at most
+    /// [`INNER_THETA_DEG`] (same denominator): without the cells next to
+    /// the horizon, where the error of a linear interpolant is largest
+    /// (docs/mitsuba.md, "Grid and accuracy").
+    pub relative_within_80_deg: f64,
+}
+
+/// Polar angle (deg) bounding the inner region of
+/// [`ResamplingError::relative_within_80_deg`].
+pub const INNER_THETA_DEG: f64 = 80.0;
+
+/// Direction pairs of the resampling check that `polbrdf export --format
+/// mitsuba` prints and the service sends as `X-Polbrdf-Resampling-Error`
+/// ([`resampling_error`] with [`CHECK_SEED`]), so that both report the
+/// same number for the same table.
+pub const CHECK_PAIRS: usize = 2000;
+/// Seed of that check.
+pub const CHECK_SEED: u64 = 1;
+
+/// Relative resampling error ([`ResamplingError::relative`]) above which the
+/// export warns (CLI stderr, the service's `X-Polbrdf-Warning`).
+pub const RESAMPLING_WARNING: f64 = 0.01;
+
+/// `θ_d`, `θ_h` nodes of the finer grid the warning suggests: 1° steps,
+/// which quarter the error away from the horizon (docs/mitsuba.md).
+pub const FINER_THETA_NODES: usize = 91;
+
+/// The caveats of an export, one sentence each (ASCII, so that they fit in
+/// an HTTP header): the resampling error when it exceeds
+/// [`RESAMPLING_WARNING`], with `finer_grid` saying how the caller's front
+/// door asks for a finer grid; and, for a mirror base, the specular delta
+/// left out of the file and what a renderer must add for it.
+pub fn export_warnings(table: &Table, check: &ResamplingError, finer_grid: &str) -> Vec<String> {
+    let mut out = Vec::new();
+    if check.relative.is_nan() || check.relative > RESAMPLING_WARNING {
+        out.push(format!(
+            "the Mitsuba grid reproduces the table to {:.1e} of max f11 cos(theta_i) (resampling_check.relative, over {} %), {:.1e} with both directions within {INNER_THETA_DEG} deg of the normal: the error sits next to the horizon; a finer grid lowers it: {finer_grid} (docs/mitsuba.md)",
+            check.relative,
+            RESAMPLING_WARNING * 100.0,
+            check.relative_within_80_deg,
+        ));
+    }
+    if table.wavelengths.iter().any(|w| w.specular.is_some()) {
+        out.push(
+            "the table's base is a mirror; its specular delta cannot be represented in a measured_polarized table and is left out: only the diffuse BRDF is in the file. A renderer must add a delta lobe at the mirror direction with weight S = exp(-2 tau/mu_i) M_F(mu_i) (docs/conventions.md sec. 6; polbrdf eval's specular; docs/mitsuba.md)".into(),
+        );
+    }
+    out
 }
 
 /// A small deterministic generator (SplitMix64) for sampling directions.
@@ -806,8 +856,10 @@ pub fn resampling_error(
 ) -> Result<ResamplingError, BrdfError> {
     let mut rng = SplitMix64(seed);
     let mut max_abs = 0.0f64;
+    let mut max_abs_inner = 0.0f64;
     let mut max_f11 = 0.0f64;
     let mut samples = 0;
+    let cos_inner = INNER_THETA_DEG.to_radians().cos();
     for _ in 0..pairs {
         let (wi, wo) = (rng.hemisphere(), rng.hemisphere());
         let x = cross(wi, wo);
@@ -815,12 +867,17 @@ pub fn resampling_error(
             continue;
         }
         let x = normalize(x);
+        let inner = wi[2] >= cos_inner && wo[2] >= cos_inner;
         for &w in &mt.wavelengths_nm {
             let w = f64::from(w);
             let exact = to_mitsuba(&table.eval_vectors(wi, wo, Some(w))?, wi, wo, x)?;
             let got = mt.eval_vectors(wi, wo, w);
             for (a, b) in exact.iter().flatten().zip(got.iter().flatten()) {
-                max_abs = max_abs.max((a - b).abs() * wi[2]);
+                let d = (a - b).abs() * wi[2];
+                max_abs = max_abs.max(d);
+                if inner {
+                    max_abs_inner = max_abs_inner.max(d);
+                }
             }
             max_f11 = max_f11.max(exact[0][0] * wi[2]);
             samples += 1;
@@ -831,6 +888,7 @@ pub fn resampling_error(
         max_abs,
         max_f11_cos: max_f11,
         relative: max_abs / max_f11,
+        relative_within_80_deg: max_abs_inner / max_f11,
     })
 }
 
@@ -1156,5 +1214,45 @@ mod tests {
                 .unwrap()
                 .starts_with("NOT INCLUDED")
         );
+    }
+
+    /// The warnings: the resampling error only over 1 % (ASCII, naming the
+    /// value and the caller's remedy), the mirror's delta whenever the base
+    /// is a mirror; and the inner error never exceeds the whole
+    /// hemisphere's (same denominator, a subset of the samples).
+    #[test]
+    fn export_warnings_follow_the_check_and_the_base() {
+        let five = [450.0, 500.0, 550.0, 600.0, 650.0];
+        let lambertian = table(&five, r#"{"lambertian": {"albedo": 0.5}}"#);
+        let mirror = table(&five, r#"{"fresnel": {"material": {"n": 1.5, "k": 0.0}}}"#);
+        let coarse = MitsubaOptions {
+            phi_d: 9,
+            theta_d: 7,
+            theta_h: 7,
+            ..Default::default()
+        };
+        let check =
+            resampling_error(&lambertian, &build(&lambertian, &coarse).unwrap(), 300, 1).unwrap();
+        assert!(check.relative > RESAMPLING_WARNING, "{check:?}");
+        assert!(check.relative_within_80_deg <= check.relative, "{check:?}");
+        assert!(check.relative_within_80_deg > 0.0, "{check:?}");
+        let w = export_warnings(&lambertian, &check, "--finer");
+        assert_eq!(w.len(), 1, "{w:?}");
+        assert!(
+            w[0].contains(&format!("{:.1e}", check.relative)),
+            "{}",
+            w[0]
+        );
+        assert!(w[0].contains("--finer") && w[0].is_ascii(), "{}", w[0]);
+        let under = ResamplingError {
+            relative: RESAMPLING_WARNING,
+            ..check.clone()
+        };
+        assert!(export_warnings(&lambertian, &under, "--finer").is_empty());
+        let w = export_warnings(&mirror, &under, "--finer");
+        assert_eq!(w.len(), 1, "{w:?}");
+        assert!(w[0].contains("specular delta") && w[0].contains("exp(-2 tau/mu_i)"));
+        assert!(w[0].is_ascii());
+        assert_eq!(export_warnings(&mirror, &check, "--finer").len(), 2);
     }
 }

@@ -9,8 +9,9 @@ use std::time::Instant;
 
 #[derive(Debug, Subcommand)]
 pub enum BenchCommand {
-    /// Full-Mueller BRDF table of the seed's TiO2 layer on the seed's
-    /// 51 x 51 x 61 grid, at several stream counts, with the error against
+    /// Full-Mueller BRDF table of the TiO2 layer of Collin et al., "Computation
+    /// of Polarized Subsurface BRDF for Rendering" (Graphics Interface 2014), on
+    /// their 51 x 51 x 61 grid, at several stream counts, with the error against
     /// the 64-stream table.
     Table(TableArgs),
     /// Time per Mie + expansion at several size parameters.
@@ -54,8 +55,9 @@ pub fn run(cmd: &BenchCommand) -> Result<Value, String> {
     }
 }
 
-/// The seed's table size: 51 polar angles (incident and outgoing) at the
-/// midpoints of 51 equal steps of 0..90° (0.88°..89.12°: the horizon itself,
+/// The table size of Collin et al. 2014 (Graphics Interface): 51 polar
+/// angles (incident and outgoing) at the midpoints of 51 equal steps of
+/// 0..90° (0.88°..89.12°: the horizon itself,
 /// where the single-scattering BRDF diverges like 1/(μ + μ0), is left out so
 /// that "relative to max f11" means something) and 61 azimuths 0..360°.
 pub fn seed_grid() -> (Vec<f64>, Vec<f64>) {
@@ -84,12 +86,12 @@ fn tio2_problem(streams: usize, start_factor: f64) -> Result<Problem, String> {
     })
 }
 
-/// f11 on the seed grid: [theta_i][theta_o][phi].
+/// f11 on the grid of [`seed_grid`]: [theta_i][theta_o][phi].
 fn table_f11(problem: &Problem) -> Result<Vec<f64>, String> {
     let (theta, phi) = seed_grid();
     let mu: Vec<f64> = theta
         .iter()
-        .map(|&t| super::solve::mu_of_theta_deg(t))
+        .map(|&t| crate::brdf::angles::mu_of_theta_deg(t))
         .collect();
     let set = super::solve::MuSet::new(mu.iter().cloned());
     let refl = solver::reflection(problem, &set.mu).map_err(|e| e.to_string())?;

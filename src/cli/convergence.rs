@@ -29,6 +29,10 @@ pub struct ConvergenceArgs {
     /// Write an error-versus-time chart (log-log; .svg or .png).
     #[arg(long)]
     plot: Option<String>,
+    /// Most streams of any solve, the reference's included (the HTTP service's
+    /// default cap unless raised; at most 512).
+    #[arg(long, default_value_t = super::solve::default_max_streams(), value_parser = super::solve::max_streams_parser())]
+    max_streams: usize,
 }
 
 /// Probe grid of docs/accuracy.md: cosines of 11 polar angles at the
@@ -125,6 +129,12 @@ pub fn run(a: &ConvergenceArgs) -> Result<Value, String> {
     if reference_streams <= max_streams {
         return Err(format!(
             "--reference-streams {reference_streams} must exceed the largest of --streams ({max_streams})"
+        ));
+    }
+    if reference_streams > a.max_streams {
+        return Err(format!(
+            "the reference solve needs {reference_streams} streams (--reference-streams, default twice the largest of --streams), over --max-streams {}: raise --max-streams or lower --streams",
+            a.max_streams
         ));
     }
     let reference_problem = with_streams(&problem, reference_streams);

@@ -5,6 +5,7 @@
 use crate::brdf::export::{self, DenseGrid, NpyType};
 use crate::brdf::format::{self, DataType};
 use crate::brdf::mitsuba::{self, BelowHorizon, MitsubaOptions};
+use crate::brdf::table::BuildOptions;
 use crate::brdf::{Directions, PolarGrid, Table};
 use crate::spec;
 use clap::{Args, ValueEnum};
@@ -15,7 +16,8 @@ use sha2::{Digest, Sha256};
 /// Export formats.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum ExportFormat {
-    /// Dense (W, Ti, To, P, 4, 4) array on the seed's 51 x 51 x 61 grid.
+    /// Dense (W, Ti, To, P, 4, 4) array on the 51 x 51 x 61 grid of Collin et al.,
+    /// "Computation of Polarized Subsurface BRDF for Rendering" (GI 2014).
     Npy,
     /// Mueller matrices at the direction pairs of --points.
     Json,
@@ -131,18 +133,7 @@ pub fn run(a: &ExportArgs) -> Result<Value, String> {
             };
             let bytes = export::npy_bytes(&d.shape(), &d.data, ty).map_err(|e| e.to_string())?;
             write(&a.output, &bytes)?;
-            Ok(json!({
-                "file": a.output, "format": "npy", "shape": d.shape(),
-                "dtype": match ty { NpyType::F32 => "<f4", NpyType::F64 => "<f8" },
-                "axes": {
-                    "wavelength_nm": d.wavelength_nm,
-                    "theta_i_deg": grid.theta_i_deg,
-                    "theta_o_deg": grid.theta_o_deg,
-                    "phi_deg": grid.phi_deg,
-                    "phi_note": "phi = phi_o - phi_i (graphics convention, phi_i = 0; 180 = mirror side)",
-                },
-                "frames": export::FRAMES, "units": "1/sr",
-            }))
+            Ok(npy_summary(&a.output, &d, &grid, ty, &bytes))
         }
         ExportFormat::Json => {
             let path = a
@@ -171,8 +162,50 @@ pub fn run(a: &ExportArgs) -> Result<Value, String> {
     }
 }
 
-/// Direction pairs of the resampling check printed by `--format mitsuba`.
-const CHECK_PAIRS: usize = 2000;
+/// The summary `--format npy` prints: what was written and the axes as
+/// counts and ranges (their values follow from docs/table-format.md's
+/// regular grid; the file holds only the array).
+fn npy_summary(
+    output: &str,
+    d: &export::Dense,
+    grid: &DenseGrid,
+    ty: NpyType,
+    bytes: &[u8],
+) -> Value {
+    let axis = |v: &[f64], rule: &str| json!({"count": v.len(), "first": v.first(), "last": v.last(), "spacing": rule});
+    let wavelengths: Vec<f64> = d.wavelength_nm.iter().flatten().copied().collect();
+    json!({
+        "file": output, "format": "npy", "shape": d.shape(),
+        "dtype": match ty { NpyType::F32 => "<f4", NpyType::F64 => "<f8" },
+        "bytes": bytes.len(),
+        "sha256_of_file": hex_sha256(bytes),
+        "axes": {
+            "wavelength_nm": if wavelengths.is_empty() {
+                json!({"count": d.wavelength_nm.len(), "values": "none: a wavelength-free table"})
+            } else {
+                json!({"count": wavelengths.len(), "first": wavelengths.first(), "last": wavelengths.last(), "spacing": "the table's wavelengths"})
+            },
+            "theta_i_deg": axis(&grid.theta_i_deg, "midpoints of equal steps of 0..90"),
+            "theta_o_deg": axis(&grid.theta_o_deg, "midpoints of equal steps of 0..90"),
+            "phi_deg": axis(&grid.phi_deg, "equal steps, both ends included"),
+            "phi_note": "phi = phi_o - phi_i (graphics convention, phi_i = 0; 180 = mirror side)",
+        },
+        "frames": export::FRAMES, "units": "1/sr",
+    })
+}
+
+fn hex_sha256(bytes: &[u8]) -> String {
+    Sha256::digest(bytes)
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect()
+}
+
+/// The CLI's way to a finer grid, for [`mitsuba::export_warnings`].
+fn finer_grid_flags() -> String {
+    let n = mitsuba::FINER_THETA_NODES;
+    format!("--theta-d-nodes {n} --theta-h-nodes {n} (1 deg steps; 4 times the file size)")
+}
 
 fn export_mitsuba(a: &ExportArgs, table: &Table) -> Result<Value, String> {
     if a.points.is_some() || a.theta_i_deg.is_some() || a.wavelength_nm.is_some() {
@@ -189,14 +222,12 @@ fn export_mitsuba(a: &ExportArgs, table: &Table) -> Result<Value, String> {
             Some(BelowHorizonArg::Zero) => BelowHorizon::Zero,
         },
     };
-    let mirror = table.wavelengths.iter().any(|w| w.specular.is_some());
-    if mirror {
-        eprintln!(
-            "polbrdf: warning: the table's base is a mirror; its specular delta cannot be represented in a measured_polarized table and is left out (only the diffuse BRDF is exported; docs/mitsuba.md)"
-        );
-    }
     let mt = mitsuba::build(table, &opts).map_err(|e| e.to_string())?;
-    let check = mitsuba::resampling_error(table, &mt, CHECK_PAIRS, 1).map_err(|e| e.to_string())?;
+    let check = mitsuba::resampling_error(table, &mt, mitsuba::CHECK_PAIRS, mitsuba::CHECK_SEED)
+        .map_err(|e| e.to_string())?;
+    for w in mitsuba::export_warnings(table, &check, &finer_grid_flags()) {
+        eprintln!("polbrdf: warning: {w}");
+    }
     let bytes = mt.to_bytes();
     write(&a.output, &bytes)?;
     let meta: Value = serde_json::from_str(&mt.metadata).expect("metadata JSON");
@@ -220,19 +251,26 @@ fn export_mitsuba(a: &ExportArgs, table: &Table) -> Result<Value, String> {
 }
 
 /// `polbrdf solve SPEC --table OUT`: build the table on the default polar
-/// grid (one solve per wavelength) and write it (f64 coefficients).
-pub fn write_table(spec_path: &str, out: &str) -> Result<Value, String> {
-    let text = std::fs::read_to_string(spec_path).map_err(|e| format!("{spec_path}: {e}"))?;
-    let spec = spec::parse(&text).map_err(|e| format!("{spec_path}: {e}"))?;
-    let table =
-        Table::from_spec(&spec, PolarGrid::default()).map_err(|e| format!("{spec_path}: {e}"))?;
+/// grid (one solve per wavelength, [`Table::from_spec_with`] with the
+/// caller's stream cap and progress sink) and write it (f64 coefficients).
+/// Returns the file's summary and the table (its metadata has the
+/// per-wavelength streams, orders, timings and error estimates).
+pub fn write_table(
+    spec: &spec::Spec,
+    spec_path: &str,
+    out: &str,
+    options: &BuildOptions,
+) -> Result<(Value, Table), String> {
+    let table = Table::from_spec_with(spec, PolarGrid::default(), options)
+        .map_err(|e| format!("{spec_path}: {e}"))?;
     format::write_file(&table, out, DataType::F64).map_err(|e| e.to_string())?;
     let bytes = std::fs::read(out).map_err(|e| format!("{out}: {e}"))?;
-    Ok(json!({
+    let summary = json!({
         "file": out,
         "bytes": bytes.len(),
-        "sha256_of_file": Sha256::digest(&bytes).iter().map(|b| format!("{b:02x}")).collect::<String>(),
+        "sha256_of_file": hex_sha256(&bytes),
         "polar_nodes": table.grid.len(),
         "wavelengths": table.metadata.wavelengths,
-    }))
+    });
+    Ok((summary, table))
 }

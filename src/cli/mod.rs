@@ -7,6 +7,7 @@ pub mod eval;
 pub mod export;
 pub mod mie;
 pub mod plot;
+pub mod progress;
 pub mod render;
 pub mod serve;
 pub mod solve;
@@ -26,27 +27,33 @@ pub struct Cli {
 enum Command {
     /// Mie theory for one particle population: efficiencies, scattering matrix, expansion.
     Mie(mie::MieArgs),
-    /// Solve a material spec: BRDF at direction pairs, internal field.
-    Solve {
-        /// The material spec (JSON, docs/spec.md).
-        spec: String,
-        /// Direction pairs: {"points": [{"theta_i_deg", "phi_i_deg", "theta_o_deg", "phi_o_deg"}]}.
-        #[arg(long)]
-        points: Option<String>,
-        /// Internal field request: {"mu0", "phi0_deg", "stokes", "tau", "mu", "phi_deg"}.
-        #[arg(long)]
-        field: Option<String>,
-        /// Also write the BRDF table (binary, docs/table-format.md) to this file.
-        #[arg(long)]
-        table: Option<String>,
-    },
+    /// Solve a material spec: BRDF at direction pairs, internal field, BRDF table.
+    ///
+    /// Prints {"results": [{"wavelength_nm", "computed", ...}]}: per wavelength,
+    /// "computed" lists what was computed ("points", "field", "table") and only
+    /// those parts are present: "points" and "specular" (with --points), "field"
+    /// (with --field), "solver": {"streams", "polarized", "fourier_orders",
+    /// "wall_time_ms", "error_estimate"} for the direct solve (with --points or
+    /// --field; "error_estimate" only when the direction pairs were solved), and
+    /// "table": {"streams", "fourier_orders", "wall_time_ms", "error_estimate"} for
+    /// the table build at that wavelength (with --table, which also adds the
+    /// top-level "table": {"file", "bytes", "sha256_of_file", "polar_nodes",
+    /// "wavelengths"}). Nothing that was not computed appears, not even as an
+    /// empty list, 0 or null; without --points, --field or --table the spec is
+    /// only checked ("computed": []).
+    ///
+    /// With stderr a terminal, a progress bar while solving and a one-line
+    /// summary at the end go to stderr; otherwise stderr stays empty on success.
+    Solve(solve::SolveArgs),
     /// Evaluate a BRDF table at one direction pair.
     Eval(eval::EvalArgs),
     /// Export a BRDF table: dense .npy, JSON point set or CSV slice.
     Export(export::ExportArgs),
     /// Error against run time: solve at increasing streams, compare with a reference.
     Convergence(convergence::ConvergenceArgs),
-    /// Plots of the seed's figures (SVG/PNG plus the plotted numbers as CSV).
+    /// Plots of the figures of Collin et al., "Computation of Polarized Subsurface
+    /// BRDF for Rendering" (Graphics Interface 2014): SVG/PNG plus the plotted
+    /// numbers as CSV.
     #[command(subcommand)]
     Plot(plot::PlotCommand),
     /// Polarized preview renderer (spheres with BRDF tables on a floor).
@@ -63,17 +70,7 @@ pub fn main() -> i32 {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Mie(args) => mie::run(&args),
-        Command::Solve {
-            spec,
-            points,
-            field,
-            table,
-        } => solve::run(&spec, points.as_deref(), field.as_deref()).and_then(|mut v| {
-            if let Some(out) = table {
-                v["table"] = export::write_table(&spec, &out)?;
-            }
-            Ok(v)
-        }),
+        Command::Solve(a) => solve::run(&a),
         Command::Eval(a) => eval::run(&a),
         Command::Export(a) => export::run(&a),
         Command::Convergence(a) => convergence::run(&a),

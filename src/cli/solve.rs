@@ -1,14 +1,88 @@
-//! `polbrdf solve SPEC.json [--points POINTS.json] [--field FIELD.json]`.
+//! `polbrdf solve SPEC.json [--points POINTS.json] [--field FIELD.json]
+//! [--table OUT] [--max-streams N]`.
+//!
+//! **Output** (stdout, one JSON document):
+//!
+//! ```text
+//! {"results": [{"wavelength_nm", "computed": [...],
+//!               "points": [...], "specular": [...],                       with --points
+//!               "field": [...],                                           with --field
+//!               "solver": {"streams", "polarized", "fourier_orders",
+//!                          "wall_time_ms", "error_estimate"},             with --points or --field
+//!               "table": {"streams", "fourier_orders", "wall_time_ms",
+//!                         "error_estimate"}}],                            with --table
+//!  "table": {"file", "bytes", "sha256_of_file", "polar_nodes", "wavelengths"}}   with --table
+//! ```
+//!
+//! Each result says what was computed for its wavelength in `computed`
+//! (`"points"`, `"field"`, `"table"`, in that order) and carries only those
+//! parts: nothing that was not computed appears, not even as `[]`, `0` or
+//! `null`. `solver` describes the direct solve at the direction pairs of
+//! `--points` and/or the internal field of `--field` (both at the same
+//! streams); `error_estimate` (the solver's a-posteriori estimate,
+//! `solver::accuracy`) is present only when the direction pairs were solved,
+//! as the field solve makes none. `specular` (with `--points`) lists the
+//! specular term of a mirror base per incident angle (conventions §6) and is
+//! empty for other bases. The per-result `table` object describes the table
+//! build at that wavelength (its own solve on the table's polar grid, from
+//! the table's metadata, docs/table-format.md); the top-level `table`
+//! describes the file. Without `--points`, `--field` or `--table` the spec
+//! is only checked (`computed: []`).
 
+use super::progress::Progress;
+use crate::brdf::angles::{MU_FLOOR, dphi_prop_rad, mu_of_theta_deg};
 use crate::solver::{self, Base, fourier_sum};
-use crate::spec;
+use crate::spec::{self, Spec, SpecError};
+use clap::Args;
 use serde::{Deserialize, Serialize};
 use serde_json::{Value, json};
 use std::time::Instant;
 
-/// Smallest direction cosine evaluated; directions closer to the horizon are
-/// evaluated at this cosine (docs/conventions.md §5).
-pub const MU_FLOOR: f64 = 1e-6;
+/// `polbrdf solve` arguments.
+#[derive(Debug, Args)]
+pub struct SolveArgs {
+    /// The material spec (JSON, docs/spec.md).
+    pub spec: String,
+    /// Direction pairs: {"points": [{"theta_i_deg", "phi_i_deg", "theta_o_deg", "phi_o_deg"}]}.
+    #[arg(long)]
+    pub points: Option<String>,
+    /// Internal field request: {"mu0", "phi0_deg", "stokes", "tau", "mu", "phi_deg"}.
+    #[arg(long)]
+    pub field: Option<String>,
+    /// Also write the BRDF table (binary, docs/table-format.md) to this file.
+    #[arg(long)]
+    pub table: Option<String>,
+    /// Most streams: a spec with more `solver.streams` is refused (exit 2), and
+    /// a `solver.tolerance` may pick at most this many. The default is the HTTP
+    /// service's default cap (`polbrdf serve --max-streams`); at most 512.
+    #[arg(long, default_value_t = default_max_streams(), value_parser = max_streams_parser())]
+    pub max_streams: usize,
+}
+
+/// The default of `--max-streams`: the service's default cap
+/// (`http::config::Limits`), so that the command line refuses what the
+/// service would.
+pub fn default_max_streams() -> usize {
+    crate::http::config::Limits::default().max_streams
+}
+
+/// `--max-streams` values: 1 to the spec's hard limit [`spec::MAX_STREAMS`].
+pub fn max_streams_parser() -> clap::builder::RangedU64ValueParser<usize> {
+    clap::builder::RangedU64ValueParser::<usize>::new().range(1..=spec::MAX_STREAMS as u64)
+}
+
+/// Refuse an explicit `solver.streams` over `max_streams` (`--max-streams`),
+/// with the service's message but for the name of the cap's owner (the
+/// service says "this service's allowed range").
+pub fn check_stream_cap(spec: &Spec, max_streams: usize) -> Result<(), SpecError> {
+    match spec.solver.streams {
+        Some(n) if n > max_streams => Err(SpecError::new(
+            "solver.streams",
+            format!("{n} is outside the allowed range [1, {max_streams}] (--max-streams)"),
+        )),
+        _ => Ok(()),
+    }
+}
 
 /// One direction pair in the graphics convention (degrees, both directions
 /// pointing away from the surface).
@@ -45,11 +119,6 @@ fn unpolarized() -> [f64; 4] {
     [1.0, 0.0, 0.0, 0.0]
 }
 
-/// Cosine of a polar angle in degrees, floored at [`MU_FLOOR`].
-pub fn mu_of_theta_deg(theta_deg: f64) -> f64 {
-    theta_deg.to_radians().cos().clamp(MU_FLOOR, 1.0)
-}
-
 /// Sorted distinct cosines and a lookup.
 pub struct MuSet {
     pub mu: Vec<f64>,
@@ -83,20 +152,8 @@ fn check_angle(what: &str, v: f64, lo: f64, hi: f64) -> Result<(), String> {
     }
 }
 
-/// Run `solve` and return the JSON document.
-pub fn run(
-    spec_path: &str,
-    points_path: Option<&str>,
-    field_path: Option<&str>,
-) -> Result<Value, String> {
-    let text = std::fs::read_to_string(spec_path).map_err(|e| format!("{spec_path}: {e}"))?;
-    let spec = spec::parse(&text).map_err(|e| format!("{spec_path}: {e}"))?;
-    // Refuse before solving what the solver would refuse (docs/spec.md).
-    spec::check_solvable(&spec, spec::MAX_STREAMS).map_err(|e| format!("{spec_path}: {e}"))?;
-    let points: Vec<Point> = match points_path {
-        Some(p) => read_json::<PointsFile>(p)?.points,
-        None => Vec::new(),
-    };
+fn read_points(path: &str) -> Result<Vec<Point>, String> {
+    let points = read_json::<PointsFile>(path)?.points;
     for (i, p) in points.iter().enumerate() {
         check_angle(
             &format!("points[{i}].theta_i_deg"),
@@ -123,25 +180,133 @@ pub fn run(
             360.0,
         )?;
     }
-    let field: Option<FieldFile> = field_path.map(read_json).transpose()?;
-    if let Some(f) = &field {
-        check_angle("field.mu0", f.mu0, MU_FLOOR, 1.0)?;
-        for (i, m) in f.mu.iter().enumerate() {
-            check_angle(&format!("field.mu[{i}]"), *m, -1.0, 1.0)?;
-        }
-        for (i, t) in f.tau.iter().enumerate() {
-            check_angle(&format!("field.tau[{i}]"), *t, 0.0, 1e12)?;
-        }
+    Ok(points)
+}
+
+fn read_field(path: &str) -> Result<FieldFile, String> {
+    let f: FieldFile = read_json(path)?;
+    check_angle("field.mu0", f.mu0, MU_FLOOR, 1.0)?;
+    for (i, m) in f.mu.iter().enumerate() {
+        check_angle(&format!("field.mu[{i}]"), *m, -1.0, 1.0)?;
     }
+    for (i, t) in f.tau.iter().enumerate() {
+        check_angle(&format!("field.tau[{i}]"), *t, 0.0, 1e12)?;
+    }
+    Ok(f)
+}
+
+/// Run `solve` and return the JSON document (module doc); with stderr a
+/// terminal, a progress bar while solving and a one-line summary at the end
+/// ([`summary_line`]).
+pub fn run(a: &SolveArgs) -> Result<Value, String> {
+    let started = Instant::now();
+    let spec_path = a.spec.as_str();
+    let text = std::fs::read_to_string(spec_path).map_err(|e| format!("{spec_path}: {e}"))?;
+    let spec = spec::parse(&text).map_err(|e| format!("{spec_path}: {e}"))?;
+    // Refuse before solving what the service or the solver would refuse
+    // (docs/spec.md).
+    check_stream_cap(&spec, a.max_streams).map_err(|e| format!("{spec_path}: {e}"))?;
+    spec::check_solvable(&spec, a.max_streams).map_err(|e| format!("{spec_path}: {e}"))?;
+    let points = a.points.as_deref().map(read_points).transpose()?;
+    let field = a.field.as_deref().map(read_field).transpose()?;
+
+    let wavelengths = spec::wavelengths(&spec);
+    let direct = points.is_some() || field.is_some();
+    let stages = wavelengths.len() * (usize::from(direct) + usize::from(a.table.is_some()));
+    let progress = Progress::new(stages);
 
     let mut results = Vec::new();
-    for wl in spec::wavelengths(&spec) {
-        let start = Instant::now();
-        let problem = spec::problem(&spec, wl).map_err(|e| format!("{spec_path}: {e}"))?;
+    for (k, &wl) in wavelengths.iter().enumerate() {
         let mut out = serde_json::Map::new();
         out.insert("wavelength_nm".into(), json!(wl));
-        let mut orders = 0;
+        if direct {
+            progress.stage(k, &stage_message("solving", wl, k, wavelengths.len()));
+            let solved = solve_direct(
+                &spec,
+                spec_path,
+                wl,
+                points.as_deref(),
+                field.as_ref(),
+                a.max_streams,
+                &progress.within(k),
+            )?;
+            out.extend(solved);
+        }
+        results.push(Value::Object(out));
+    }
+    let mut doc = json!({ "results": results });
 
+    if let Some(path) = &a.table {
+        let offset = if direct { wavelengths.len() } else { 0 };
+        let on_progress = |k: usize, total: usize, x: f64| {
+            progress.stage(
+                offset + k,
+                &stage_message("building the table", wavelengths[k], k, total),
+            );
+            progress.within(offset + k)(x);
+        };
+        let options = crate::brdf::table::BuildOptions {
+            max_streams: a.max_streams,
+            on_progress: &on_progress,
+        };
+        let (file, table) = super::export::write_table(&spec, spec_path, path, &options)?;
+        for r in doc["results"].as_array_mut().expect("results") {
+            let wl = r["wavelength_nm"].as_f64();
+            let meta = table
+                .metadata
+                .wavelengths
+                .iter()
+                .find(|m| m.wavelength_nm == wl)
+                .ok_or("the table lacks a wavelength of the spec")?;
+            let mut t = json!({
+                "streams": meta.streams,
+                "fourier_orders": meta.fourier_orders,
+                "wall_time_ms": meta.wall_time_ms,
+            });
+            if let Some(e) = &meta.error_estimate {
+                t["error_estimate"] = serde_json::to_value(e).expect("JSON");
+            }
+            r["table"] = t;
+        }
+        doc["table"] = file;
+    }
+    for r in doc["results"].as_array_mut().expect("results") {
+        let computed: Vec<&str> = ["points", "field", "table"]
+            .into_iter()
+            .filter(|k| r.get(*k).is_some())
+            .collect();
+        r["computed"] = json!(computed);
+    }
+    progress.finish(summary_line(&doc, started.elapsed().as_secs_f64()));
+    Ok(doc)
+}
+
+fn stage_message(what: &str, wl: Option<f64>, k: usize, total: usize) -> String {
+    match wl {
+        Some(w) => format!("{what}: {w} nm ({}/{total})", k + 1),
+        None => what.to_string(),
+    }
+}
+
+/// The direct solve of one wavelength: `points` and `specular` (with
+/// `--points`), `field` (with `--field`) and the `solver` block (module doc).
+fn solve_direct(
+    spec: &Spec,
+    spec_path: &str,
+    wl: Option<f64>,
+    points: Option<&[Point]>,
+    field: Option<&FieldFile>,
+    max_streams: usize,
+    on_progress: &(dyn Fn(f64) + Sync),
+) -> Result<serde_json::Map<String, Value>, String> {
+    let start = Instant::now();
+    let mut problem = spec::problem(spec, wl).map_err(|e| format!("{spec_path}: {e}"))?;
+    let mut out = serde_json::Map::new();
+    let mut orders = 0;
+    let mut estimate = None;
+    let mut solved_any = false;
+
+    if let Some(points) = points {
         let set = MuSet::new(points.iter().flat_map(|p| {
             [
                 mu_of_theta_deg(p.theta_i_deg),
@@ -150,31 +315,34 @@ pub fn run(
         }));
         let mut pts = Vec::new();
         let mut spec_terms = Vec::new();
-        let mut estimate = Value::Null;
-        let mut streams_used = problem.settings.streams;
         if !set.mu.is_empty() {
-            let solved = match spec::stream_policy(&spec) {
+            let solved = match spec::stream_policy(spec) {
                 spec::StreamPolicy::Fixed(_) => {
-                    solver::accuracy::reflection_with_estimate(&problem, &set.mu)
+                    solver::accuracy::reflection_with_estimate_observed(
+                        &problem,
+                        &set.mu,
+                        on_progress,
+                    )
                 }
                 spec::StreamPolicy::Tolerance(t) => solver::accuracy::reflection_to_tolerance(
                     &problem,
                     &set.mu,
                     t,
-                    spec::MAX_STREAMS,
-                    &|_| {},
+                    max_streams,
+                    on_progress,
                 ),
             }
             .map_err(|e| e.to_string())?;
-            estimate = serde_json::to_value(&solved.estimate).expect("JSON");
-            streams_used = solved.estimate.streams[2];
+            solved_any = true;
+            // The field (if asked for) at the streams the points were solved at.
+            problem.settings.streams = solved.estimate.streams[2];
+            estimate = Some(serde_json::to_value(&solved.estimate).expect("JSON"));
             let refl = solved.reflection;
             orders = refl.rho.len();
-            for p in &points {
+            for p in points {
                 let iu = set.index(mu_of_theta_deg(p.theta_o_deg));
                 let iv = set.index(mu_of_theta_deg(p.theta_i_deg));
-                let dphi = (p.phi_o_deg - p.phi_i_deg - 180.0).to_radians();
-                let m = refl.brdf(iu, iv, dphi);
+                let m = refl.brdf(iu, iv, dphi_prop_rad(p.phi_i_deg, p.phi_o_deg));
                 pts.push(json!({
                     "theta_i_deg": p.theta_i_deg, "phi_i_deg": p.phi_i_deg,
                     "theta_o_deg": p.theta_o_deg, "phi_o_deg": p.phi_o_deg,
@@ -183,7 +351,7 @@ pub fn run(
             }
             if let Base::Mirror { mueller } = &problem.base {
                 let mut seen: Vec<f64> = Vec::new();
-                for p in &points {
+                for p in points {
                     if seen.contains(&p.theta_i_deg) {
                         continue;
                     }
@@ -202,41 +370,178 @@ pub fn run(
         }
         out.insert("points".into(), Value::Array(pts));
         out.insert("specular".into(), Value::Array(spec_terms));
+    }
 
-        if let Some(f) = &field {
-            let fset = MuSet::new(
-                f.mu.iter()
-                    .map(|m| m.abs().clamp(MU_FLOOR, 1.0))
-                    .chain(std::iter::once(f.mu0)),
-            );
-            let ff =
-                solver::internal_field(&problem, &fset.mu, &f.tau).map_err(|e| e.to_string())?;
-            orders = orders.max(ff.up.first().map_or(0, |v| v.len()));
-            let iv = fset.index(f.mu0);
-            let mut entries = Vec::new();
-            for (k, &tau) in f.tau.iter().enumerate() {
-                for &mu in &f.mu {
-                    let iu = fset.index(mu.abs().clamp(MU_FLOOR, 1.0));
-                    let rho = if mu > 0.0 { &ff.up[k] } else { &ff.down[k] };
-                    for &phi in &f.phi_deg {
-                        let m = fourier_sum(rho, ff.ns, iu, iv, (phi - f.phi0_deg).to_radians());
-                        let s = crate::physics::stokes::apply(&m, f.stokes)
-                            .map(|x| std::f64::consts::PI * x);
-                        entries.push(json!({"tau": tau, "mu": mu, "phi_deg": phi, "stokes": s}));
-                    }
+    if let Some(f) = field {
+        let fset = MuSet::new(
+            f.mu.iter()
+                .map(|m| m.abs().clamp(MU_FLOOR, 1.0))
+                .chain(std::iter::once(f.mu0)),
+        );
+        let ff = solver::internal_field(&problem, &fset.mu, &f.tau).map_err(|e| e.to_string())?;
+        solved_any = true;
+        orders = orders.max(ff.up.first().map_or(0, |v| v.len()));
+        let iv = fset.index(f.mu0);
+        let mut entries = Vec::new();
+        for (k, &tau) in f.tau.iter().enumerate() {
+            for &mu in &f.mu {
+                let iu = fset.index(mu.abs().clamp(MU_FLOOR, 1.0));
+                let rho = if mu > 0.0 { &ff.up[k] } else { &ff.down[k] };
+                for &phi in &f.phi_deg {
+                    let m = fourier_sum(rho, ff.ns, iu, iv, (phi - f.phi0_deg).to_radians());
+                    let s = crate::physics::stokes::apply(&m, f.stokes)
+                        .map(|x| std::f64::consts::PI * x);
+                    entries.push(json!({"tau": tau, "mu": mu, "phi_deg": phi, "stokes": s}));
                 }
             }
-            out.insert("field".into(), Value::Array(entries));
-        } else {
-            out.insert("field".into(), Value::Array(Vec::new()));
         }
-        let ms = start.elapsed().as_secs_f64() * 1e3;
-        out.insert(
-            "solver".into(),
-            json!({"streams": streams_used, "polarized": problem.settings.polarized,
-                   "fourier_orders": orders, "wall_time_ms": ms, "error_estimate": estimate}),
-        );
-        results.push(Value::Object(out));
+        out.insert("field".into(), Value::Array(entries));
     }
-    Ok(json!({ "results": results }))
+
+    let ms = start.elapsed().as_secs_f64() * 1e3;
+    let mut solver_block = json!({
+        "streams": problem.settings.streams, "polarized": problem.settings.polarized,
+        "fourier_orders": orders, "wall_time_ms": ms,
+    });
+    if let Some(e) = estimate {
+        solver_block["error_estimate"] = e;
+    }
+    // An empty --points file solves nothing: no solver block for it.
+    if solved_any {
+        out.insert("solver".into(), solver_block);
+    }
+    Ok(out)
+}
+
+/// The one-line human summary of a `solve` document (printed on stderr when
+/// it is a terminal): `polbrdf: solved W wavelength(s) [at P direction
+/// pair(s)] [(internal field)], S streams, M Fourier orders[, error estimate
+/// [at most] E of max f11][; table FILE at W wavelength(s), ...]; T s`, with
+/// ranges `a-b` where the wavelengths differ. `None` when nothing was
+/// computed.
+pub fn summary_line(doc: &Value, seconds: f64) -> Option<String> {
+    let results = doc["results"].as_array()?;
+    let n = results.len();
+    let wavelengths = if n == 1 {
+        "1 wavelength".to_string()
+    } else {
+        format!("{n} wavelengths")
+    };
+    let mut parts = Vec::new();
+    let solvers: Vec<&Value> = results.iter().filter_map(|r| r.get("solver")).collect();
+    if !solvers.is_empty() {
+        let mut what = format!("solved {wavelengths}");
+        if let Some(p) = results[0].get("points").and_then(Value::as_array) {
+            let s = if p.len() == 1 { "" } else { "s" };
+            what += &format!(" at {} direction pair{s}", p.len());
+        }
+        if results[0].get("field").is_some() {
+            what += " (internal field)";
+        }
+        parts.push(describe(&what, &solvers));
+    }
+    let tables: Vec<&Value> = results.iter().filter_map(|r| r.get("table")).collect();
+    if !tables.is_empty() {
+        let file = doc["table"]["file"].as_str().unwrap_or("?");
+        parts.push(describe(&format!("table {file} at {wavelengths}"), &tables));
+    }
+    if parts.is_empty() {
+        return None;
+    }
+    Some(format!("polbrdf: {}; {seconds:.2} s", parts.join("; ")))
+}
+
+/// `what, S streams, M Fourier orders, error estimate E of max f11` over the
+/// blocks of several wavelengths (ranges where they differ, the largest
+/// estimate).
+fn describe(what: &str, blocks: &[&Value]) -> String {
+    let range = |key: &str| -> Option<String> {
+        let v: Vec<u64> = blocks.iter().filter_map(|b| b[key].as_u64()).collect();
+        let (lo, hi) = (v.iter().min()?, v.iter().max()?);
+        Some(if lo == hi {
+            format!("{lo}")
+        } else {
+            format!("{lo}-{hi}")
+        })
+    };
+    let mut s = what.to_string();
+    if let Some(r) = range("streams") {
+        s += &format!(", {r} streams");
+    }
+    if let Some(r) = range("fourier_orders") {
+        s += &format!(", {r} Fourier orders");
+    }
+    let estimates: Vec<f64> = blocks
+        .iter()
+        .filter_map(|b| b["error_estimate"]["max_err_f11"].as_f64())
+        .collect();
+    if let Some(e) = estimates.iter().cloned().reduce(f64::max) {
+        let bound = if estimates.len() > 1 { "at most " } else { "" };
+        s += &format!(", error estimate {bound}{e:.1e} of max f11");
+    }
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn spec_with_streams(n: usize) -> Spec {
+        spec::parse(&format!(
+            r#"{{"layers":[{{"optical_thickness":1,"scatterer":{{"rayleigh":{{"albedo":0.9}}}}}}],"solver":{{"streams":{n}}}}}"#
+        ))
+        .unwrap()
+    }
+
+    #[test]
+    fn the_stream_cap_refuses_only_above_it_and_names_the_field() {
+        assert!(check_stream_cap(&spec_with_streams(128), 128).is_ok());
+        let e = check_stream_cap(&spec_with_streams(129), 128).unwrap_err();
+        assert_eq!(e.path, "solver.streams");
+        assert!(e.message.contains("[1, 128]") && e.message.contains("--max-streams"));
+        assert!(check_stream_cap(&spec_with_streams(256), 256).is_ok());
+        // No explicit streams: nothing to cap here (a tolerance is capped by
+        // check_solvable and the solver).
+        let tol = spec::parse(
+            r#"{"layers":[{"optical_thickness":1,"scatterer":{"rayleigh":{"albedo":0.9}}}],"solver":{"tolerance":1e-3}}"#,
+        )
+        .unwrap();
+        assert!(check_stream_cap(&tol, 4).is_ok());
+    }
+
+    #[test]
+    fn the_default_cap_is_the_services() {
+        assert_eq!(
+            default_max_streams(),
+            crate::http::config::Limits::default().max_streams
+        );
+        assert!(default_max_streams() <= spec::MAX_STREAMS);
+    }
+
+    #[test]
+    fn the_summary_names_what_was_computed() {
+        let doc = json!({"results": [
+            {"wavelength_nm": 450.0, "computed": ["points", "table"],
+             "points": [{}, {}], "specular": [],
+             "solver": {"streams": 16, "fourier_orders": 12, "error_estimate": {"max_err_f11": 3.1e-5}},
+             "table": {"streams": 16, "fourier_orders": 14, "error_estimate": {"max_err_f11": 2e-5}}},
+            {"wavelength_nm": 550.0, "computed": ["points", "table"],
+             "points": [{}, {}], "specular": [],
+             "solver": {"streams": 32, "fourier_orders": 11, "error_estimate": {"max_err_f11": 4.2e-5}},
+             "table": {"streams": 32, "fourier_orders": 13, "error_estimate": {"max_err_f11": 1e-5}}}],
+            "table": {"file": "t.pbrdf"}});
+        let s = summary_line(&doc, 1.234).unwrap();
+        assert_eq!(
+            s,
+            "polbrdf: solved 2 wavelengths at 2 direction pairs, 16-32 streams, 11-12 Fourier orders, error estimate at most 4.2e-5 of max f11; table t.pbrdf at 2 wavelengths, 16-32 streams, 13-14 Fourier orders, error estimate at most 2.0e-5 of max f11; 1.23 s"
+        );
+        let checked = json!({"results": [{"wavelength_nm": null, "computed": []}]});
+        assert_eq!(summary_line(&checked, 0.1), None);
+        let one = json!({"results": [{"computed": ["field"], "field": [],
+            "solver": {"streams": 8, "fourier_orders": 5}}]});
+        assert_eq!(
+            summary_line(&one, 0.5).unwrap(),
+            "polbrdf: solved 1 wavelength (internal field), 8 streams, 5 Fourier orders; 0.50 s"
+        );
+    }
 }

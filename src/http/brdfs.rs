@@ -669,8 +669,31 @@ pub struct ExportCache {
     entries: std::sync::Mutex<std::collections::VecDeque<(String, Export)>>,
 }
 
-/// One derived export: bytes, media type, SHA-256 (hex) of the bytes.
-type Export = (std::sync::Arc<Vec<u8>>, &'static str, String);
+/// Headers describing a derived export (`format=mitsuba`:
+/// [`RESAMPLING_ERROR_HEADER`], [`WARNING_HEADER`]), name and value.
+type ExportHeaders = Vec<(&'static str, String)>;
+
+/// One derived export: bytes, media type, SHA-256 (hex) of the bytes, and
+/// its [`ExportHeaders`].
+type Export = (std::sync::Arc<Vec<u8>>, &'static str, String, ExportHeaders);
+
+/// `format=mitsuba`: the relative resampling error of the file against the
+/// table (`brdf::mitsuba::ResamplingError::relative`, the
+/// `resampling_check.relative` that `polbrdf export --format mitsuba`
+/// prints for the same table), always sent.
+pub const RESAMPLING_ERROR_HEADER: &str = "x-polbrdf-resampling-error";
+/// `format=mitsuba`: one caveat per header (`brdf::mitsuba::export_warnings`):
+/// a resampling error over 1 %, a mirror base's specular delta left out.
+pub const WARNING_HEADER: &str = "x-polbrdf-warning";
+
+/// How a client of the service gets a finer Mitsuba grid (the service
+/// exports the default grid), for `brdf::mitsuba::export_warnings`.
+fn finer_grid_hint() -> String {
+    let n = crate::brdf::mitsuba::FINER_THETA_NODES;
+    format!(
+        "export with the command line, polbrdf export http://HOST/v1/brdfs/ID --format mitsuba --theta-d-nodes {n} --theta-h-nodes {n} (the service writes the default grid)"
+    )
+}
 
 /// Exports kept by [`ExportCache`].
 const CACHED_EXPORTS: usize = 4;
@@ -698,7 +721,7 @@ fn dense_bytes(
     q: &TableQuery,
     format: TableFormat,
     max_values: usize,
-) -> Result<(Vec<u8>, &'static str), ApiError> {
+) -> Result<(Vec<u8>, &'static str, ExportHeaders), ApiError> {
     use crate::brdf::export::{self, DenseGrid, NpyType};
     let invalid = |path: &str, message: String| ApiError::InvalidTableQuery {
         path: path.into(),
@@ -715,11 +738,19 @@ fn dense_bytes(
             resample_wavelengths: q.resample_wavelengths.unwrap_or(false),
             ..Default::default()
         };
-        let bytes = crate::brdf::mitsuba::mitsuba_bytes(table, &opts).map_err(|e| match e {
+        use crate::brdf::mitsuba;
+        let mt = mitsuba::build(table, &opts).map_err(|e| match e {
             crate::brdf::BrdfError::Query(m) => invalid("resample_wavelengths", m),
             other => invalid("format", other.to_string()),
         })?;
-        return Ok((bytes, MITSUBA_MEDIA_TYPE));
+        let check =
+            mitsuba::resampling_error(table, &mt, mitsuba::CHECK_PAIRS, mitsuba::CHECK_SEED)
+                .map_err(|e| ApiError::Internal(e.to_string()))?;
+        let mut headers = vec![(RESAMPLING_ERROR_HEADER, check.relative.to_string())];
+        for w in mitsuba::export_warnings(table, &check, &finer_grid_hint()) {
+            headers.push((WARNING_HEADER, w));
+        }
+        return Ok((mt.to_bytes(), MITSUBA_MEDIA_TYPE, headers));
     }
     if q.resample_wavelengths.is_some() {
         return Err(invalid(
@@ -755,7 +786,7 @@ fn dense_bytes(
             };
             let bytes = export::npy_bytes(&d.shape(), &d.data, ty)
                 .map_err(|e| ApiError::Internal(e.to_string()))?;
-            Ok((bytes, "application/x-npy"))
+            Ok((bytes, "application/x-npy", Vec::new()))
         }
         _ => {
             let v = serde_json::json!({
@@ -775,7 +806,11 @@ fn dense_bytes(
                 "specular_note": "the specular delta of a mirror base is not part of dense values; see the binary table or eval",
                 "data": d.data,
             });
-            Ok((serde_json::to_vec(&v).expect("JSON"), "application/json"))
+            Ok((
+                serde_json::to_vec(&v).expect("JSON"),
+                "application/json",
+                Vec::new(),
+            ))
         }
     }
 }
@@ -807,7 +842,9 @@ fn dense_bytes(
              (TableBytes = "application/octet-stream"),
          ),
          headers(("ETag" = String, description = "\"<sha256 of the bytes>\""),
-                 ("Cache-Control" = String, description = "public, max-age=31536000, immutable"))),
+                 ("Cache-Control" = String, description = "public, max-age=31536000, immutable"),
+                 ("X-Polbrdf-Resampling-Error" = f64, description = "format=mitsuba only: max |error of f cos(theta_i)| of the file against the table relative to max f11 cos(theta_i), at 2000 seeded direction pairs x 5 wavelengths (the resampling_check.relative of polbrdf export --format mitsuba; docs/mitsuba.md)"),
+                 ("X-Polbrdf-Warning" = String, description = "format=mitsuba only, one header per caveat: the resampling error is over 1 % (and how to get a finer grid), or the table's mirror base has a specular delta that is not in the file (docs/mitsuba.md)"))),
         (status = 304, description = "The client's copy is current",
          headers(("ETag" = String), ("Cache-Control" = String))),
         (status = 401, description = "Token required for reads (--token-reads)", body = Problem, content_type = "application/problem+json"),
@@ -840,17 +877,17 @@ pub async fn get_table(
             q.phi_count,
             q.resample_wavelengths
         );
-        let (bytes, media, digest) = match state.0.exports.get(&key) {
+        let (bytes, media, digest, extra) = match state.0.exports.get(&key) {
             Some(hit) => hit,
             None => {
                 let max = state.0.config.limits.max_dense_values;
                 let export = tokio::task::spawn_blocking(move || {
-                    dense_bytes(&table, &q, format, max).map(|(bytes, media)| {
+                    dense_bytes(&table, &q, format, max).map(|(bytes, media, extra)| {
                         let digest: String = sha2::Sha256::digest(&bytes)
                             .iter()
                             .map(|b| format!("{b:02x}"))
                             .collect();
-                        (std::sync::Arc::new(bytes), media, digest)
+                        (std::sync::Arc::new(bytes), media, digest, extra)
                     })
                 })
                 .await
@@ -870,6 +907,11 @@ pub async fn get_table(
         let h = res.headers_mut();
         h.insert(header::ETAG, etag_of(&digest));
         h.insert(header::CACHE_CONTROL, HeaderValue::from_static(IMMUTABLE));
+        for (name, value) in extra {
+            let value = HeaderValue::from_str(&value)
+                .map_err(|e| ApiError::Internal(format!("header {name}: {e}")))?;
+            h.append(name, value);
+        }
         return Ok(res);
     }
     if q.dtype.is_some()

@@ -5,7 +5,8 @@
 //! `≥ −1e-9 f11`) and reciprocal (`f(μ, μ0, Δφ) = Δ f(μ0, μ, −Δφ)ᵀ Δ`,
 //! `Δ = diag(1, 1, −1, 1)`, conventions §5), and the plane albedo
 //! `A(μ0) = 2π ∫ f^0_11 μ dμ` (plus the specular part over a mirror) is at
-//! most 1 within the solver's stated error (`1e-9 + π · estimate · max f11`).
+//! most 1 within the solver's stated error (`1e-9 + π · estimate · max f̄11`,
+//! the order-0 estimate on the directions the albedo integrates).
 //! A spec whose phase function the streams cannot integrate must be refused
 //! with the typed `SolverError::Unresolved`.
 //!
@@ -235,16 +236,33 @@ fn mu_quadrature() -> (Vec<f64>, Vec<f64>) {
     (x, w)
 }
 
-/// Plane albedo `A(μ0) = ∫ ρ^0_11 μ dμ / μ0` (+ specular part over a mirror).
-fn plane_albedo(p: &Problem, mu0: &[f64]) -> Result<Vec<f64>, String> {
+/// Plane albedo `A(μ0) = ∫ ρ^0_11 μ dμ / μ0` (+ specular part over a mirror)
+/// at each `μ0`, and the error the solver states for it.
+///
+/// `A = 2π ∫ f̄11 μ dμ` integrates the azimuthal mean `f̄11` (order 0) over
+/// every outgoing direction, so a discretisation error `|Δf̄11| ≤ ε` changes
+/// it by at most `π ε`. `ε` is the solver's own a-posteriori estimate made
+/// on the directions integrated (the quadrature nodes and `μ0`, order 0):
+/// relative to the largest `f̄11` there, which for a thick conservative layer
+/// sits next to the horizon (seed 100003: 16× the largest value on `MU`).
+fn plane_albedo(p: &Problem, mu0: &[f64]) -> Result<(Vec<f64>, f64), String> {
     let (x, w) = mu_quadrature();
     let mut mu = x.clone();
     mu.extend_from_slice(mu0);
     let mut p = p.clone();
     p.settings.max_order = Some(0);
-    let r = reflection(&p, &mu).map_err(|e| e.to_string())?;
+    let solved = polbrdf::solver::accuracy::reflection_with_estimate(&p, &mu)
+        .map_err(|e| e.to_string())?;
+    let r = solved.reflection;
     let ns = r.ns;
-    Ok(mu0
+    let mut f11_max: f64 = 0.0;
+    for iu in 0..mu.len() {
+        for iv in 0..mu.len() {
+            f11_max = f11_max.max(r.brdf(iu, iv, 0.0)[0][0]);
+        }
+    }
+    let allowed = ALBEDO_TOL + PI * solved.estimate.max_err_f11 * f11_max;
+    let albedo = mu0
         .iter()
         .enumerate()
         .map(|(k, &m0)| {
@@ -259,7 +277,8 @@ fn plane_albedo(p: &Problem, mu0: &[f64]) -> Result<Vec<f64>, String> {
             }
             a
         })
-        .collect())
+        .collect();
+    Ok((albedo, allowed))
 }
 
 /// Worst values over all cases.
@@ -279,8 +298,8 @@ struct Stats {
 /// eigenvalues; every returned matrix passes `solver::make_realizable`),
 /// reciprocal. `strict` adds the plane albedo (see
 /// `random_specs_obey_realizability_and_energy_laws`), which needs the
-/// solver's error estimate (two coarser solves; its fine solve is the
-/// reflection checked).
+/// solver's error estimate on the directions the albedo integrates
+/// (order 0; `plane_albedo`).
 fn check(c: &Case, stats: &RefCell<Stats>, strict: bool) -> Result<(), TestCaseError> {
     let text = to_json(c).to_string();
     let s = spec::parse(&text).map_err(|e| TestCaseError::fail(format!("parse: {e}")))?;
@@ -293,16 +312,7 @@ fn check(c: &Case, stats: &RefCell<Stats>, strict: bool) -> Result<(), TestCaseE
         // reciprocity a test of the law.
         p.settings.start_factor = 1e-3;
     }
-    // The strict check needs the solver's error estimate, whose `N`-stream
-    // solve is the reflection itself (`Estimated::reflection`): one solve
-    // serves both.
-    let solved = if strict {
-        polbrdf::solver::accuracy::reflection_with_estimate(&p, &MU)
-            .map(|e| (e.reflection, Some(e.estimate.max_err_f11)))
-    } else {
-        reflection(&p, &MU).map(|r| (r, None))
-    };
-    let (r, estimate) = match solved {
+    let r = match reflection(&p, &MU) {
         Ok(r) => r,
         // A typed refusal naming the streams needed is a correct answer
         // for a series the streams cannot integrate (solver::check_resolved).
@@ -378,14 +388,11 @@ fn check(c: &Case, stats: &RefCell<Stats>, strict: bool) -> Result<(), TestCaseE
     if !strict {
         return Ok(());
     }
-    // The user-direction BRDF carries the stream discretisation error, so
-    // its plane albedo obeys A ≤ 1 to within what that error can change in
-    // A = 2π ∫ f11 μ dμ: π · max|Δf11|, with max|Δf11| the solver's own
-    // a-posteriori estimate (relative to max f11 on the same directions).
-    // A result over 1 by more than its stated error fails.
-    let est = estimate.expect("strict solves estimate");
-    let allowed = ALBEDO_TOL + PI * est * f11_max;
-    let a = plane_albedo(&p, &MU).map_err(|e| TestCaseError::fail(format!("albedo: {e}")))?;
+    // The BRDF carries the stream discretisation error, so its plane albedo
+    // obeys A ≤ 1 to within what the solver states that error to be
+    // (`plane_albedo`). A result over 1 by more than its stated error fails.
+    let (a, allowed) =
+        plane_albedo(&p, &MU).map_err(|e| TestCaseError::fail(format!("albedo: {e}")))?;
     for (k, &ak) in a.iter().enumerate() {
         st.albedo.see(ak - 1.0, || format!("{label} mu0={}", MU[k]));
         st.albedo_over_allowed
@@ -407,7 +414,7 @@ fn random_specs_obey_the_laws() {
 }
 
 /// The laws above plus the one that needs the solver's stated error: plane
-/// albedo ≤ 1 within the discretisation error the solver reports (π × estimate × max f11; at
+/// albedo ≤ 1 within the discretisation error the solver reports (π × estimate × max f̄11; at
 /// 4–12 streams the user-direction albedo of a conservative layer is off by
 /// up to 3.3e-5, 1.8 % of its stated error). Series the streams cannot
 /// integrate are refused with `SolverError::Unresolved`.
@@ -439,6 +446,37 @@ fn slowly_contracting_levels_state_enough_error() {
     check(&c, &stats, true).unwrap();
     let st = stats.borrow();
     assert!(st.albedo.value > 5e-6, "the excess this case is about");
+}
+
+/// A case of the strict sweep (seed 100003) whose largest BRDF values and
+/// errors sit next to the horizon: a semi-infinite conservative lognormal
+/// Mie layer at 9 streams. Its plane albedo at μ0 = 0.1 exceeds 1 by
+/// 1.26e-4. The estimate on the four `MU` directions states 6.5e-5 of the
+/// largest f11 there (true, on a dense grid of outgoing directions against
+/// 36 streams: 6.1e-5 of the largest f11 on that grid), but the largest f11
+/// at 88° from the normal is 16× the largest on `MU`, so
+/// π × estimate × max f11 on `MU` allowed only 1.16e-4. On the directions
+/// the albedo integrates the stated error covers the excess.
+#[test]
+fn grazing_errors_are_stated_on_the_directions_integrated() {
+    let c = Case {
+        layers: vec![(
+            Tau::Infinite,
+            Scatterer::MieDistribution {
+                n: 2.4844091333217024,
+                k: 0.0,
+                lognormal: true,
+                size_um: 0.18045153356089716,
+                spread: 1.8164007621090978,
+            },
+        )],
+        base: BaseGen::Black,
+        streams: 9,
+    };
+    let stats = RefCell::new(Stats::default());
+    check(&c, &stats, true).unwrap();
+    let st = stats.borrow();
+    assert!(st.albedo.value > 1e-4, "the excess this case is about");
 }
 
 fn run_properties(with_albedo: bool) {

@@ -51,7 +51,7 @@ fn max_diff(a: &M4, b: &M4) -> f64 {
 /// Build a table with `solve --table` and return its path.
 fn table_of(d: &std::path::Path, spec: &Value) -> String {
     let s = write_json(d, "spec.json", spec);
-    let t = d.join("table.pbt").to_string_lossy().into_owned();
+    let t = d.join("table.pbrdf").to_string_lossy().into_owned();
     let v = ok(&["solve", &s, "--table", &t]);
     assert_eq!(v["table"]["file"], json!(t));
     t
@@ -313,7 +313,7 @@ fn corrupted_tables_are_rejected() {
     });
     let table = table_of(&d, &spec);
     let good = std::fs::read(&table).unwrap();
-    let bad = d.join("bad.pbt").to_string_lossy().into_owned();
+    let bad = d.join("bad.pbrdf").to_string_lossy().into_owned();
     let cases: Vec<(Vec<u8>, &str)> = vec![
         (
             {

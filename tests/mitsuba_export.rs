@@ -134,7 +134,7 @@ fn paint(d: &Path, wavelengths: &[f64], base: Value) -> String {
     });
     let s = d.join("spec.json");
     std::fs::write(&s, spec.to_string()).unwrap();
-    let t = path(&d.join("table.pbt"));
+    let t = path(&d.join("table.pbrdf"));
     ok(&["solve", &path(&s), "--table", &t]);
     t
 }

@@ -251,8 +251,8 @@ fn plane_albedo(p: &Problem, mu0: &[f64]) -> Result<(Vec<f64>, f64), String> {
     mu.extend_from_slice(mu0);
     let mut p = p.clone();
     p.settings.max_order = Some(0);
-    let solved = polbrdf::solver::accuracy::reflection_with_estimate(&p, &mu)
-        .map_err(|e| e.to_string())?;
+    let solved =
+        polbrdf::solver::accuracy::reflection_with_estimate(&p, &mu).map_err(|e| e.to_string())?;
     let r = solved.reflection;
     let ns = r.ns;
     let mut f11_max: f64 = 0.0;

@@ -576,7 +576,7 @@ pub struct TableQuery {
     /// Element type of `npy`: `f32` (default) or `f64`.
     pub dtype: Option<DenseType>,
     /// Polar angles of the dense grid (midpoints of equal steps of 0..90°,
-    /// for both directions; default 51, the seed's).
+    /// for both directions; default 51, as in Collin et al. 2014).
     pub theta_count: Option<usize>,
     /// Azimuths `φ_o − φ_i` of the dense grid, 0..360° inclusive (default 61).
     pub phi_count: Option<usize>,
@@ -819,7 +819,7 @@ fn dense_bytes(
 ///
 /// `format=binary` (default) serves the stored table; `npy` and `json` a
 /// dense regular grid (`theta_count` × `theta_count` × `phi_count`, default
-/// the seed's 51 × 51 × 61) of the Mueller BRDF. The ETag is the SHA-256 of
+/// 51 × 51 × 61, the table size of Collin et al. 2014) of the Mueller BRDF. The ETag is the SHA-256 of
 /// the bytes served; results never change, so they are served `immutable`
 /// and `If-None-Match` gives 304. HEAD is supported. The stored bytes are
 /// verified against their digest on every read: a missing or corrupt blob

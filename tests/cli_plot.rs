@@ -395,6 +395,31 @@ fn bad_input_is_a_clear_error() {
     assert!(e.contains(".svg or .png"), "{e}");
     let e = fails(&["plot", "lobe", "-o", o]);
     assert!(e.contains("at least one spec or --table"), "{e}");
+    // The service's stream cap, from the spec or --streams, unless --max-streams.
+    let big = write(
+        &d,
+        "big.json",
+        &tio2(1.0, true).replace("\"streams\":8", "\"streams\":256"),
+    );
+    let e = fails(&["plot", "dop-vs-mu", &big, "-o", o]);
+    assert!(
+        e.contains("solver.streams") && e.contains("[1, 128]") && e.contains("--max-streams"),
+        "{e}"
+    );
+    let e = fails(&["plot", "dop-vs-tau", &spec, "--streams", "200", "-o", o]);
+    assert!(e.contains("[1, 128] (--max-streams)"), "{e}");
+    let e = fails(&[
+        "plot",
+        "dop-vs-tau",
+        &spec,
+        "--streams",
+        "200",
+        "--max-streams",
+        "150",
+        "-o",
+        o,
+    ]);
+    assert!(e.contains("[1, 150]"), "{e}");
     assert!(!out.exists(), "no image for bad input");
     // Argument errors from clap also exit non-zero.
     let (code, _, err) = run(&["plot", "dop-vs-tau", "-o", o]);

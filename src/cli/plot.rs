@@ -82,6 +82,9 @@ pub struct SolveArgs {
     /// Quadrature streams per hemisphere, overriding the spec's solver.streams / solver.tolerance.
     #[arg(long)]
     pub streams: Option<usize>,
+    /// Most streams of a solve, from --streams or the spec (default: the service's cap).
+    #[arg(long, default_value_t = super::solve::default_max_streams(), value_parser = super::solve::max_streams_parser())]
+    pub max_streams: usize,
 }
 
 #[derive(Debug, Args)]
@@ -400,11 +403,11 @@ fn check_finite(plot: &str, taus: &[Thickness]) -> Result<(), String> {
 /// `--wavelength-nm` and `--streams` (checked).
 fn solve_options(a: &SolveArgs) -> Result<SolveOptions, String> {
     if let Some(n) = a.streams
-        && !(1..=spec::MAX_STREAMS).contains(&n)
+        && !(1..=a.max_streams).contains(&n)
     {
         return Err(format!(
-            "--streams {n} is outside [1, {}]",
-            spec::MAX_STREAMS
+            "--streams {n} is outside [1, {}] (--max-streams)",
+            a.max_streams
         ));
     }
     Ok(SolveOptions {
@@ -420,9 +423,18 @@ fn size(out: &OutputArgs) -> Result<Option<(u32, u32)>, String> {
 // ---------------------------------------------------------------------------
 // Files.
 
-fn load_spec(path: &str) -> Result<Spec, String> {
+/// Read a spec; unless `--streams` replaces its streams, they are held to
+/// `--max-streams` and the spec must pass `spec::check_solvable` there.
+fn load_spec(path: &str, solve: &SolveArgs) -> Result<Spec, String> {
     let text = std::fs::read_to_string(path).map_err(|e| format!("{path}: {e}"))?;
-    spec::parse(&text).map_err(|e| format!("{path}: {e}"))
+    let spec = spec::parse(&text).map_err(|e| format!("{path}: {e}"))?;
+    if solve.streams.is_none() {
+        super::solve::check_stream_cap(&spec, solve.max_streams)
+            .map_err(|e| format!("{path}: {e}"))?;
+        // What the solve would refuse, refused before solving (as `solve`).
+        spec::check_solvable(&spec, solve.max_streams).map_err(|e| format!("{path}: {e}"))?;
+    }
+    Ok(spec)
 }
 
 /// `STEM-suffix.ext` next to `path`.
@@ -481,7 +493,7 @@ fn dop_vs_mu(a: &DopVsMuArgs) -> Result<Value, String> {
     };
     let plot = match (&a.spec, &a.table) {
         (Some(path), None) => {
-            let spec = load_spec(path)?;
+            let spec = load_spec(path, &a.solve)?;
             figures::dop_vs_mu(Source::Spec { path, spec: &spec }, &o)
         }
         (None, Some(src)) => {
@@ -531,7 +543,7 @@ fn dop_vs_tau(a: &DopVsTauArgs) -> Result<Value, String> {
         solve,
         size: size(&a.out)?,
     };
-    let spec = load_spec(&a.spec)?;
+    let spec = load_spec(&a.spec, &a.solve)?;
     let plot = figures::dop_vs_tau(&a.spec, &spec, &o).map_err(|e| e.to_string())?;
     let csv = write_plot(&plot.figure, &plot.csv, &a.out.output)?;
     report(
@@ -564,7 +576,7 @@ fn scalar_error(a: &ScalarErrorArgs) -> Result<Value, String> {
     let specs = a
         .specs
         .iter()
-        .map(|p| load_spec(p))
+        .map(|p| load_spec(p, &a.solve))
         .collect::<Result<Vec<_>, _>>()?;
     let inputs: Vec<ScalarErrorInput> = a
         .specs
@@ -624,7 +636,7 @@ fn lobe(a: &LobeArgs) -> Result<Value, String> {
     let specs = a
         .specs
         .iter()
-        .map(|p| load_spec(p))
+        .map(|p| load_spec(p, &a.solve))
         .collect::<Result<Vec<_>, _>>()?;
     let tables = a
         .table

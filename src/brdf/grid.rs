@@ -110,6 +110,34 @@ impl PolarGrid {
         Ok(Self { theta_deg, mu, s })
     }
 
+    /// Where the interpolation error of a table on this grid is measured:
+    /// halfway (in `s`) between consecutive nodes, where the Lagrange
+    /// remainder of a smooth function peaks, and more densely in the two
+    /// intervals next to the horizon, where the BRDF is least smooth
+    /// (`μ ln μ` terms; a semi-infinite Rayleigh layer on 8 nodes errs
+    /// most within 0.2° of the horizon, over 4× its error at the last
+    /// midpoint, 89.4°): the quarter points of both, and 0.9, 0.97 and
+    /// 0.99 of the last (in `s`).
+    pub fn probe_theta_deg(&self) -> Vec<f64> {
+        let n = self.len();
+        let mut probes = Vec::new();
+        for (k, w) in self.s.windows(2).enumerate() {
+            let fractions: &[f64] = if k + 2 == n {
+                &[0.25, 0.5, 0.75, 0.9, 0.97, 0.99]
+            } else if k + 3 == n {
+                &[0.25, 0.5, 0.75]
+            } else {
+                &[0.5]
+            };
+            probes.extend(
+                fractions
+                    .iter()
+                    .map(|t| theta_deg_of_s(w[0] + t * (w[1] - w[0]))),
+            );
+        }
+        probes
+    }
+
     /// Number of nodes.
     pub fn len(&self) -> usize {
         self.theta_deg.len()

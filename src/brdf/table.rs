@@ -204,6 +204,12 @@ pub struct WavelengthMeta {
     /// with `solver.tolerance`, docs/spec.md).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub error_estimate: Option<EstimateMeta>,
+    /// Measured interpolation error of f11 relative to max f11, for a grid
+    /// the request chose (`needs.grid`): the largest error at probe angles
+    /// between the nodes (`PolarGrid::probe_theta_deg`), against the
+    /// solver there.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub interpolation_error: Option<f64>,
 }
 
 /// The JSON metadata of a table file (docs/table-format.md).
@@ -252,6 +258,12 @@ pub fn build(spec: &Spec, grid: &PolarGrid) -> Result<Vec<WavelengthTable>, Brdf
         .collect()
 }
 
+/// The polar grid a plan's table is built on: the default 64 nodes, or
+/// `needs.grid.polar_nodes` (validated: at least 6).
+pub fn plan_grid(plan: &Plan) -> PolarGrid {
+    PolarGrid::graded(plan.needs.polar_nodes()).expect("validated polar_nodes")
+}
+
 /// How [`Table::from_spec_with`] builds a table.
 pub struct BuildOptions<'a> {
     /// Most streams a `solver.tolerance` may pick (explicit
@@ -280,8 +292,12 @@ pub struct BuiltWavelength {
     /// Streams of the solve (the policy's fixed count, or what a tolerance
     /// picked).
     pub streams: usize,
-    /// The solver's a-posteriori estimate.
+    /// The solver's a-posteriori estimate (`None` with
+    /// `needs.error_estimate: false`).
     pub error_estimate: Option<EstimateMeta>,
+    /// Measured interpolation error of a grid other than the default
+    /// ([`interpolation_error`]); `None` on the default grid.
+    pub interpolation_error: Option<f64>,
 }
 
 /// Solve wavelength `k` of a plan at the grid cosines (see [`build`]).
@@ -297,28 +313,55 @@ pub fn build_wavelength(
     let (wl, problem) = (lowered.wavelength_nm, &lowered.problem);
     let t0 = Instant::now();
     let progress = |x: f64| (options.on_progress)(k, total, x);
-    let (refl, streams, error_estimate) = match plan.policy {
+    // A grid other than the default (`needs.grid.polar_nodes`) is also
+    // solved at probe angles between its nodes (`PolarGrid::probe_theta_deg`),
+    // where its interpolation error is measured (`interpolation_error`);
+    // the table stores the nodes only. That is 2n + 6 user directions:
+    // fewer than the default grid's 64 for n ≤ 28 nodes.
+    let probes = if grid.len() != crate::brdf::grid::DEFAULT_NODES {
+        grid.probe_theta_deg()
+    } else {
+        Vec::new()
+    };
+    let mut mu_user = grid.mu.clone();
+    mu_user.extend(probes.iter().map(|&t| mu_of_theta_deg(t)));
+    let estimate_meta = |e: solver::accuracy::ErrorEstimate| EstimateMeta {
+        max_err_f11: e.max_err_f11,
+        streams: e.streams,
+        contraction: e.contraction,
+    };
+    let (mut refl, streams, error_estimate) = match plan.policy {
+        // `needs.error_estimate: false`: one solve instead of three.
+        spec::StreamPolicy::Fixed(_) if !plan.needs.error_estimate => {
+            let r = solver::reflection_observed(problem, &mu_user, &|done, bound| {
+                progress(done as f64 / bound.max(1) as f64)
+            })?;
+            (r, problem.settings.streams, None)
+        }
         spec::StreamPolicy::Fixed(_) => {
             let e =
-                solver::accuracy::reflection_with_estimate_observed(problem, &grid.mu, &progress)?;
-            (e.reflection, problem.settings.streams, e.estimate)
+                solver::accuracy::reflection_with_estimate_observed(problem, &mu_user, &progress)?;
+            (
+                e.reflection,
+                problem.settings.streams,
+                Some(estimate_meta(e.estimate)),
+            )
         }
         spec::StreamPolicy::Tolerance(t) => {
             let e = solver::accuracy::reflection_to_tolerance(
                 problem,
-                &grid.mu,
+                &mu_user,
                 t,
                 options.max_streams,
                 &progress,
             )?;
-            (e.reflection, e.estimate.streams[2], e.estimate)
+            (
+                e.reflection,
+                e.estimate.streams[2],
+                Some(estimate_meta(e.estimate)),
+            )
         }
     };
-    let error_estimate = Some(EstimateMeta {
-        max_err_f11: error_estimate.max_err_f11,
-        streams: error_estimate.streams,
-        contraction: error_estimate.contraction,
-    });
     let ns = refl.ns;
     let n = grid.len();
     let orders = refl.rho.len();
@@ -346,7 +389,7 @@ pub fn build_wavelength(
         ),
         _ => None,
     };
-    let correction = match refl.correction {
+    let correction = match refl.correction.take() {
         Some(correction) => Some(StoredCorrection {
             mirror_indices: match correction.mirror {
                 Some(_) => lowered.mirror_indices,
@@ -366,11 +409,67 @@ pub fn build_wavelength(
         wall_time_ms: t0.elapsed().as_secs_f64() * 1e3,
         correction,
     };
+    let interpolation_error =
+        (!probes.is_empty()).then(|| interpolation_error(&block, grid, &refl, &probes));
     Ok(BuiltWavelength {
         block,
         streams,
         error_estimate,
+        interpolation_error,
     })
+}
+
+/// Measured interpolation error of a table block (T2): the largest
+/// `Σ_m w_m |f^m_11(interpolated) − f^m_11(solved)|`, `w_m = (2 − δ_m0)/(2π)`
+/// (a bound on the error of f11 at every azimuth, (T1)), over every pair of
+/// directions with at least one at a probe angle (`probes_theta_deg`,
+/// [`PolarGrid::probe_theta_deg`], solved in the same solve after the
+/// nodes: `refl.mu` = nodes then probes), relative to the largest f11 at
+/// `Δφ = 0` and `π` over all solved pairs. The single-scattering
+/// correction (T3) is exact at any direction and not part of it.
+fn interpolation_error(
+    block: &WavelengthTable,
+    grid: &PolarGrid,
+    refl: &solver::ReflectionFourier,
+    probes_theta_deg: &[f64],
+) -> f64 {
+    let n = grid.len();
+    let theta: Vec<f64> = grid
+        .theta_deg
+        .iter()
+        .chain(probes_theta_deg)
+        .copied()
+        .collect();
+    let ns = refl.ns;
+    let orders = block.orders.min(refl.rho.len());
+    let weight = |m: usize| if m == 0 { 1.0 } else { 2.0 } / (2.0 * PI);
+    let solved = |m: usize, a: usize, b: usize| refl.rho[m][(a * ns, b * ns)] / refl.mu[b];
+    let mut f11_max: f64 = 0.0;
+    for a in 0..theta.len() {
+        for b in 0..theta.len() {
+            let (mut at0, mut at_pi) = (0.0, 0.0);
+            for m in 0..orders {
+                let v = weight(m) * solved(m, a, b);
+                at0 += v;
+                at_pi += if m % 2 == 0 { v } else { -v };
+            }
+            f11_max = f11_max.max(at0.abs()).max(at_pi.abs());
+        }
+    }
+    let mut err: f64 = 0.0;
+    for a in 0..theta.len() {
+        for b in 0..theta.len() {
+            if a < n && b < n {
+                continue;
+            }
+            let c = block.coefficients(grid, theta[a], theta[b]);
+            let e: f64 = (0..orders)
+                .map(|m| weight(m) * (c[m][0][0] - solved(m, a, b)).abs())
+                .sum();
+            err = err.max(e);
+        }
+    }
+    if f11_max > 0.0 { err / f11_max } else { 0.0 }
 }
 
 /// An `ns × ns` row-major block as a 4×4 matrix (zeros outside).
@@ -578,6 +677,18 @@ impl Table {
         Self::from_plan(&plan, grid, built)
     }
 
+    /// The table a spec requests: on the grid of its `needs`
+    /// ([`plan_grid`]; the default grid without them), as the service
+    /// builds it.
+    pub fn from_spec_needs(spec: &Spec, options: &BuildOptions) -> Result<Self, BrdfError> {
+        let plan = Plan::lower(spec)?;
+        let grid = plan_grid(&plan);
+        let built = (0..plan.wavelengths.len())
+            .map(|k| build_wavelength(&plan, k, &grid, options))
+            .collect::<Result<Vec<_>, _>>()?;
+        Self::from_plan(&plan, grid, built)
+    }
+
     /// The table of a plan's solved wavelengths (sorted by wavelength), with
     /// its metadata written once: the canonical spec and its id, the
     /// settings, and per wavelength the orders, time, streams and estimate.
@@ -625,6 +736,7 @@ impl Table {
                     wall_time_ms: b.block.wall_time_ms,
                     streams: b.streams,
                     error_estimate: b.error_estimate.clone(),
+                    interpolation_error: b.interpolation_error,
                 })
                 .collect(),
         };

@@ -6,7 +6,7 @@ use crate::brdf::export::{self, DenseGrid, NpyType};
 use crate::brdf::format::{self, DataType};
 use crate::brdf::mitsuba::{self, BelowHorizon, MitsubaOptions};
 use crate::brdf::table::BuildOptions;
-use crate::brdf::{Directions, PolarGrid, Table};
+use crate::brdf::{Directions, Table};
 use crate::spec;
 use clap::{Args, ValueEnum};
 use serde::Deserialize;
@@ -261,8 +261,7 @@ pub fn write_table(
     out: &str,
     options: &BuildOptions,
 ) -> Result<(Value, Table), String> {
-    let table = Table::from_spec_with(spec, PolarGrid::default(), options)
-        .map_err(|e| format!("{spec_path}: {e}"))?;
+    let table = Table::from_spec_needs(spec, options).map_err(|e| format!("{spec_path}: {e}"))?;
     format::write_file(&table, out, DataType::F64).map_err(|e| e.to_string())?;
     let bytes = std::fs::read(out).map_err(|e| format!("{out}: {e}"))?;
     let summary = json!({

@@ -13,7 +13,7 @@
 
 use crate::brdf::format::{self, DataType};
 use crate::brdf::table::{self, BuildOptions};
-use crate::brdf::{BrdfError, PolarGrid, Table};
+use crate::brdf::{BrdfError, Table};
 use crate::solver;
 use crate::spec::Spec;
 use crate::spec::plan::Plan;
@@ -74,10 +74,11 @@ pub fn solve(
     on_progress: &(dyn Fn(f64) + Sync),
     on_wavelength: &mut dyn FnMut(usize, usize, f64),
 ) -> Result<Solved, SolveFailure> {
-    let grid = PolarGrid::default();
     // One lowering: Mie and the expansion once per wavelength, the id once.
     let plan =
         Plan::lower_naming_wavelength(spec).map_err(|(e, wl)| failure(BrdfError::Spec(e), wl))?;
+    // The default grid, or the one the spec's needs ask for.
+    let grid = table::plan_grid(&plan);
     let total = plan.wavelengths.len();
     let mut built = Vec::with_capacity(total);
     let mut wall = Vec::with_capacity(total);

@@ -71,6 +71,7 @@ pub fn normalized(spec: &Spec) -> Spec {
         canonical_material(material);
         ambient_index.get_or_insert(last_host);
     }
+    s.needs = s.needs.normalized();
     s
 }
 

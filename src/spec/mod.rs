@@ -4,6 +4,7 @@
 
 pub mod canonical;
 pub mod json;
+pub mod needs;
 pub mod plan;
 
 use crate::physics::expansion::GreekCoefficients;
@@ -46,6 +47,10 @@ pub struct Spec {
     /// Numerical settings.
     #[serde(default)]
     pub solver: SolverSpec,
+    /// What the request needs of its result ([`needs`]); absent: the full
+    /// product, and then out of the canonical form.
+    #[serde(default, skip_serializing_if = "needs::Needs::is_full")]
+    pub needs: needs::Needs,
 }
 
 /// One homogeneous layer.
@@ -802,7 +807,12 @@ pub fn validate(spec: &Spec) -> Result<(), SpecError> {
     if let Some(t) = spec.solver.tolerance {
         finite_in("solver.tolerance", t, 1e-10, 0.5, R_TOLERANCE)?;
     }
-    Ok(())
+    // A tolerance next to explicit streams is ignored (docs/spec.md).
+    let tolerance = spec
+        .solver
+        .tolerance
+        .filter(|_| spec.solver.streams.is_none());
+    spec.needs.validate(tolerance)
 }
 
 fn validate_material(path: &str, m: &MaterialSpec) -> Result<(), SpecError> {
@@ -1084,6 +1094,7 @@ pub fn settings(spec: &Spec) -> Settings {
         streams: spec.solver.streams.unwrap_or(DEFAULT_STREAMS),
         polarized: spec.solver.polarized,
         secondary_scattering: spec.solver.secondary_scattering,
+        max_order: spec.needs.max_order(),
         ..Settings::default()
     }
 }

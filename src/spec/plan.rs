@@ -4,6 +4,7 @@
 //! settings, and the job layer once more per wavelength); the canonical form
 //! and its id (docs/service.md, "Ids and versions") are computed once.
 
+use super::needs::Needs;
 use super::{Spec, wavelengths};
 use super::{SpecError, StreamPolicy, canonical, fresnel_indices, problem, stream_policy};
 use crate::physics::RefractiveIndex;
@@ -22,6 +23,8 @@ pub struct Plan {
     pub settings: Settings,
     /// Per wavelength, in the spec's order.
     pub wavelengths: Vec<Lowered>,
+    /// What the request needs of its result (normalized).
+    pub needs: Needs,
 }
 
 /// One wavelength of a [`Plan`].
@@ -60,6 +63,7 @@ impl Plan {
             policy: stream_policy(spec),
             settings: super::settings(spec),
             wavelengths: lowered,
+            needs: spec.needs.normalized(),
         })
     }
 

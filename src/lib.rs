@@ -6,6 +6,7 @@
 
 pub mod brdf;
 pub mod cli;
+pub mod digest;
 pub mod http;
 pub mod jobs;
 pub mod physics;

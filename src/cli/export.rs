@@ -11,7 +11,6 @@ use crate::spec;
 use clap::{Args, ValueEnum};
 use serde::Deserialize;
 use serde_json::{Value, json};
-use sha2::{Digest, Sha256};
 
 /// Export formats.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -178,7 +177,7 @@ fn npy_summary(
         "file": output, "format": "npy", "shape": d.shape(),
         "dtype": match ty { NpyType::F32 => "<f4", NpyType::F64 => "<f8" },
         "bytes": bytes.len(),
-        "sha256_of_file": hex_sha256(bytes),
+        "sha256_of_file": crate::digest::sha256_hex(bytes),
         "axes": {
             "wavelength_nm": if wavelengths.is_empty() {
                 json!({"count": d.wavelength_nm.len(), "values": "none: a wavelength-free table"})
@@ -192,13 +191,6 @@ fn npy_summary(
         },
         "frames": export::FRAMES, "units": "1/sr",
     })
-}
-
-fn hex_sha256(bytes: &[u8]) -> String {
-    Sha256::digest(bytes)
-        .iter()
-        .map(|b| format!("{b:02x}"))
-        .collect()
 }
 
 /// The CLI's way to a finer grid, for [`mitsuba::export_warnings`].
@@ -268,7 +260,7 @@ pub fn write_table(
     let summary = json!({
         "file": out,
         "bytes": bytes.len(),
-        "sha256_of_file": hex_sha256(&bytes),
+        "sha256_of_file": crate::digest::sha256_hex(&bytes),
         "polar_nodes": table.grid.len(),
         "wavelengths": table.metadata.wavelengths,
     });

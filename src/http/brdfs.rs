@@ -12,7 +12,6 @@ use axum::extract::{Path, Query, State};
 use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
 use serde::{Deserialize, Serialize};
-use sha2::Digest;
 use utoipa::{IntoParams, ToSchema};
 
 /// A material spec (docs/spec.md).
@@ -883,10 +882,7 @@ pub async fn get_table(
                 let max = state.0.config.limits.max_dense_values;
                 let export = tokio::task::spawn_blocking(move || {
                     dense_bytes(&table, &q, format, max).map(|(bytes, media, extra)| {
-                        let digest: String = sha2::Sha256::digest(&bytes)
-                            .iter()
-                            .map(|b| format!("{b:02x}"))
-                            .collect();
+                        let digest = crate::digest::sha256_hex(&bytes);
                         (std::sync::Arc::new(bytes), media, digest, extra)
                     })
                 })

@@ -25,9 +25,9 @@
 //! [`SOLVER_VERSION`] when results change beyond round-off.
 
 use super::{BaseSpec, ExpansionSpec, MaterialSpec, ScattererSpec, Spec};
+use crate::digest;
 use crate::physics::materials;
 use serde_json::Value;
-use sha2::{Digest, Sha256};
 
 /// Version of the spec schema mixed into every id.
 pub const SCHEMA_VERSION: &str = "1";
@@ -192,25 +192,9 @@ pub fn id_preimage(canonical_json: &str) -> String {
     format!("polbrdf-spec/{SCHEMA_VERSION}\npolbrdf-solver/{SOLVER_VERSION}\n{canonical_json}")
 }
 
-/// Lowercase hex of a byte string.
-pub fn hex(bytes: &[u8]) -> String {
-    const DIGITS: &[u8; 16] = b"0123456789abcdef";
-    let mut s = String::with_capacity(bytes.len() * 2);
-    for b in bytes {
-        s.push(DIGITS[(b >> 4) as usize] as char);
-        s.push(DIGITS[(b & 15) as usize] as char);
-    }
-    s
-}
-
-/// Lowercase hex SHA-256 of a byte string.
-pub fn sha256_hex(bytes: &[u8]) -> String {
-    hex(&Sha256::digest(bytes))
-}
-
 /// The id of a canonical JSON text.
 pub fn id_of_canonical(canonical_json: &str) -> String {
-    sha256_hex(id_preimage(canonical_json).as_bytes())
+    digest::sha256_hex(id_preimage(canonical_json).as_bytes())
 }
 
 /// The content address of a spec: its canonical JSON and its id.
@@ -222,7 +206,7 @@ pub fn id(spec: &Spec) -> (String, String) {
 
 /// True for a well-formed id (64 lowercase hex digits).
 pub fn is_id(s: &str) -> bool {
-    s.len() == 64 && s.bytes().all(|b| matches!(b, b'0'..=b'9' | b'a'..=b'f'))
+    digest::is_sha256_hex(s)
 }
 
 #[cfg(test)]

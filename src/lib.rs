@@ -10,6 +10,7 @@ pub mod digest;
 pub mod http;
 pub mod jobs;
 pub mod physics;
+pub mod plan;
 pub mod plot;
 pub mod render;
 pub mod solver;

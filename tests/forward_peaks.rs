@@ -15,8 +15,8 @@ fn mie_problem(radius_um: f64) -> Problem {
             "base": "black", "wavelengths_nm": [550]}}"#
     );
     let spec = polbrdf::spec::parse(&spec).unwrap();
-    let wl = polbrdf::spec::wavelengths(&spec)[0];
-    polbrdf::spec::problem(&spec, wl).unwrap()
+    let wl = polbrdf::plan::wavelengths(&spec)[0];
+    polbrdf::plan::problem(&spec, wl).unwrap()
 }
 
 fn solve(p: &Problem, streams: usize, mu: &[f64]) -> ReflectionFourier {

@@ -32,9 +32,9 @@ fn documented_test_vector() {
 
     // The implementation agrees with the documentation.
     let spec = polbrdf::spec::parse(&spec_text).expect("documented spec parses");
-    let (c, i) = polbrdf::spec::canonical::id(&spec);
+    let (c, i) = polbrdf::plan::id_of_spec(&spec);
     assert_eq!(c, canonical, "canonical JSON of the documented spec");
     assert_eq!(i, id.trim());
-    assert_eq!(polbrdf::spec::canonical::SCHEMA_VERSION, "1");
-    assert_eq!(polbrdf::spec::canonical::SOLVER_VERSION, "3");
+    assert_eq!(polbrdf::plan::SCHEMA_VERSION, "1");
+    assert_eq!(polbrdf::plan::SOLVER_VERSION, "3");
 }

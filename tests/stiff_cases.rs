@@ -21,7 +21,7 @@ use polbrdf::solver::{
     Base, Layer, Problem, ReflectionFourier, Settings, Thickness, internal_field, phase,
     reflection, stream_fluxes,
 };
-use polbrdf::spec;
+use polbrdf::{plan, spec};
 use std::f64::consts::PI;
 
 /// Record a failed check and go on (so that every worst value is measured and
@@ -885,7 +885,7 @@ fn grazing_and_normal_directions() {
             "base":{"fresnel":{"material":"silver"}},"wavelengths_nm":[550]}"#,
     )
     .unwrap();
-    let silver_base = spec::problem(&silver, Some(550.0)).unwrap().base;
+    let silver_base = plan::problem(&silver, Some(550.0)).unwrap().base;
     let cases: Vec<(String, GreekCoefficients, Problem)> = vec![
         {
             let c = garcia_siewert();
@@ -1080,7 +1080,7 @@ fn strong_absorbers_and_deep_stacks() {
                 r#""black""#,
             );
             let s = spec::parse(&text).unwrap_or_else(|e| panic!("{e}"));
-            let p = spec::problem(&s, Some(550.0)).unwrap_or_else(|e| panic!("{e}"));
+            let p = plan::problem(&s, Some(550.0)).unwrap_or_else(|e| panic!("{e}"));
             let label = format!(
                 "mie n={n} k={k} tau={t} (w={:.4}, L={})",
                 p.layers[0].albedo,
@@ -1105,7 +1105,7 @@ fn strong_absorbers_and_deep_stacks() {
                     base,
                 );
                 let s = spec::parse(&text).unwrap_or_else(|e| panic!("{e}"));
-                let mut p = spec::problem(&s, Some(550.0)).unwrap();
+                let mut p = plan::problem(&s, Some(550.0)).unwrap();
                 // Thin start layer for the mirror's full path (see
                 // `grazing_and_normal_directions`).
                 p.settings.start_factor = 1e-3;
@@ -1291,7 +1291,7 @@ fn silver_like() -> Base {
             "base":{"fresnel":{"material":"silver"}},"wavelengths_nm":[550]}"#,
     )
     .unwrap();
-    spec::problem(&s, Some(550.0)).unwrap().base
+    plan::problem(&s, Some(550.0)).unwrap().base
 }
 
 /// Realizability where it is tightest: Rayleigh scattering polarizes fully at

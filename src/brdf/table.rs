@@ -30,9 +30,9 @@ use super::angles::{self, Vec3, dphi_prop_rad, mu_of_theta_deg};
 use super::grid::{PolarGrid, STENCIL, Stencil};
 use crate::physics::RefractiveIndex;
 use crate::physics::stokes::{Mueller, mul, rotation};
+use crate::plan::{self, Plan};
 use crate::solver::truncation::{CorrectionLayer, SingleScatterCorrection};
 use crate::solver::{self, Base};
-use crate::spec::plan::Plan;
 use crate::spec::{self, Spec};
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
@@ -149,7 +149,7 @@ impl StoredCorrection {
             correction: SingleScatterCorrection {
                 layers,
                 polarized,
-                mirror: mirror.map(|(depth, n1, n2)| (spec::fresnel_mirror(n1, n2), depth)),
+                mirror: mirror.map(|(depth, n1, n2)| (plan::fresnel_mirror(n1, n2), depth)),
                 streams,
             },
             mirror_indices: mirror.map(|(_, n1, n2)| (n1, n2)),
@@ -213,7 +213,7 @@ pub struct Metadata {
     pub generator: String,
     /// The material spec the table was built from (docs/spec.md).
     pub spec: serde_json::Value,
-    /// The spec's id (SHA-256 of its canonical form, `spec::canonical::id`).
+    /// The spec's id (SHA-256 of its canonical form, `plan::id`).
     pub spec_hash: String,
     /// Solver settings.
     pub solver: SolverMeta,
@@ -298,12 +298,12 @@ pub fn build_wavelength(
     let t0 = Instant::now();
     let progress = |x: f64| (options.on_progress)(k, total, x);
     let (refl, streams, error_estimate) = match plan.policy {
-        spec::StreamPolicy::Fixed(_) => {
+        plan::StreamPolicy::Fixed(_) => {
             let e =
                 solver::accuracy::reflection_with_estimate_observed(problem, &grid.mu, &progress)?;
             (e.reflection, problem.settings.streams, e.estimate)
         }
-        spec::StreamPolicy::Tolerance(t) => {
+        plan::StreamPolicy::Tolerance(t) => {
             let e = solver::accuracy::reflection_to_tolerance(
                 problem,
                 &grid.mu,
@@ -606,8 +606,8 @@ impl Table {
             solver: SolverMeta {
                 streams: settings.streams,
                 tolerance: match plan.policy {
-                    spec::StreamPolicy::Tolerance(t) => Some(t),
-                    spec::StreamPolicy::Fixed(_) => None,
+                    plan::StreamPolicy::Tolerance(t) => Some(t),
+                    plan::StreamPolicy::Fixed(_) => None,
                 },
                 polarized: settings.polarized,
                 start_factor: settings.start_factor,
@@ -818,7 +818,7 @@ mod tests {
             let wt = &t.wavelengths[0];
             let stored = wt.correction.as_ref().expect("truncated solve");
             assert_eq!(stored.mirror_indices.is_some(), base != r#""black""#);
-            let p = spec::problem(&spec, Some(550.0)).unwrap();
+            let p = plan::problem(&spec, Some(550.0)).unwrap();
             let r = solver::reflection(&p, &grid.mu).unwrap();
             let (mut worst, mut scale, mut share) = (0.0f64, 0.0f64, 0.0f64);
             for o in 0..grid.len() {

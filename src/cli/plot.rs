@@ -13,6 +13,7 @@
 //! return.
 
 use crate::brdf::{PolarGrid, grid::DEFAULT_NODES};
+use crate::plan;
 use crate::plot::csv::Csv;
 use crate::plot::curves;
 use crate::plot::draw;
@@ -424,7 +425,7 @@ fn size(out: &OutputArgs) -> Result<Option<(u32, u32)>, String> {
 // Files.
 
 /// Read a spec; unless `--streams` replaces its streams, they are held to
-/// `--max-streams` and the spec must pass `spec::check_solvable` there.
+/// `--max-streams` and the spec must pass `plan::check_solvable` there.
 fn load_spec(path: &str, solve: &SolveArgs) -> Result<Spec, String> {
     let text = std::fs::read_to_string(path).map_err(|e| format!("{path}: {e}"))?;
     let spec = spec::parse(&text).map_err(|e| format!("{path}: {e}"))?;
@@ -432,7 +433,7 @@ fn load_spec(path: &str, solve: &SolveArgs) -> Result<Spec, String> {
         super::solve::check_stream_cap(&spec, solve.max_streams)
             .map_err(|e| format!("{path}: {e}"))?;
         // What the solve would refuse, refused before solving (as `solve`).
-        spec::check_solvable(&spec, solve.max_streams).map_err(|e| format!("{path}: {e}"))?;
+        plan::check_solvable(&spec, solve.max_streams).map_err(|e| format!("{path}: {e}"))?;
     }
     Ok(spec)
 }

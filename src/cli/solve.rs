@@ -31,6 +31,7 @@
 
 use super::progress::Progress;
 use crate::brdf::angles::{MU_FLOOR, dphi_prop_rad, mu_of_theta_deg};
+use crate::plan;
 use crate::solver::{self, Base, fourier_sum};
 use crate::spec::{self, Spec, SpecError};
 use clap::Args;
@@ -206,11 +207,11 @@ pub fn run(a: &SolveArgs) -> Result<Value, String> {
     // Refuse before solving what the service or the solver would refuse
     // (docs/spec.md).
     check_stream_cap(&spec, a.max_streams).map_err(|e| format!("{spec_path}: {e}"))?;
-    spec::check_solvable(&spec, a.max_streams).map_err(|e| format!("{spec_path}: {e}"))?;
+    plan::check_solvable(&spec, a.max_streams).map_err(|e| format!("{spec_path}: {e}"))?;
     let points = a.points.as_deref().map(read_points).transpose()?;
     let field = a.field.as_deref().map(read_field).transpose()?;
 
-    let wavelengths = spec::wavelengths(&spec);
+    let wavelengths = plan::wavelengths(&spec);
     let direct = points.is_some() || field.is_some();
     let stages = wavelengths.len() * (usize::from(direct) + usize::from(a.table.is_some()));
     let progress = Progress::new(stages);
@@ -300,7 +301,7 @@ fn solve_direct(
     on_progress: &(dyn Fn(f64) + Sync),
 ) -> Result<serde_json::Map<String, Value>, String> {
     let start = Instant::now();
-    let mut problem = spec::problem(spec, wl).map_err(|e| format!("{spec_path}: {e}"))?;
+    let mut problem = plan::problem(spec, wl).map_err(|e| format!("{spec_path}: {e}"))?;
     let mut out = serde_json::Map::new();
     let mut orders = 0;
     let mut estimate = None;
@@ -316,15 +317,15 @@ fn solve_direct(
         let mut pts = Vec::new();
         let mut spec_terms = Vec::new();
         if !set.mu.is_empty() {
-            let solved = match spec::stream_policy(spec) {
-                spec::StreamPolicy::Fixed(_) => {
+            let solved = match plan::stream_policy(spec) {
+                plan::StreamPolicy::Fixed(_) => {
                     solver::accuracy::reflection_with_estimate_observed(
                         &problem,
                         &set.mu,
                         on_progress,
                     )
                 }
-                spec::StreamPolicy::Tolerance(t) => solver::accuracy::reflection_to_tolerance(
+                plan::StreamPolicy::Tolerance(t) => solver::accuracy::reflection_to_tolerance(
                     &problem,
                     &set.mu,
                     t,

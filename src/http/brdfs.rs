@@ -3,7 +3,8 @@
 use super::AppState;
 use super::error::ApiError;
 use crate::jobs::{Problem, Submission};
-use crate::spec::{self, ScattererSpec, Spec, canonical};
+use crate::plan;
+use crate::spec::{self, ScattererSpec, Spec};
 use crate::storage::{JobRow, Status, rfc3339};
 use axum::Json;
 use axum::body::Bytes;
@@ -191,7 +192,7 @@ pub fn check_limits(spec: &Spec, limits: &super::config::Limits) -> Result<(), A
             ),
         ));
     }
-    let x = crate::spec::max_size_parameter(spec);
+    let x = crate::plan::max_size_parameter(spec);
     if x > limits.max_size_parameter {
         let i = spec
             .layers
@@ -287,9 +288,9 @@ pub async fn create_brdf(
     })?;
     let spec = spec::parse(text).map_err(ApiError::InvalidSpec)?;
     check_limits(&spec, &state.0.config.limits)?;
-    spec::check_solvable(&spec, state.0.config.limits.max_streams)
+    plan::check_solvable(&spec, state.0.config.limits.max_streams)
         .map_err(ApiError::InvalidSpec)?;
-    let (canonical_json, id) = canonical::id(&spec);
+    let (canonical_json, id) = plan::id_of_spec(&spec);
     tracing::debug!(%id, "submission");
     match state.0.jobs.submit(&spec, &canonical_json, &id).await? {
         Submission::Cached(row) => {
@@ -362,7 +363,7 @@ fn cursor_of(row: &JobRow) -> String {
 
 fn parse_cursor(c: &str) -> Option<(i64, &str)> {
     let (at, id) = c.split_once('-')?;
-    Some((at.parse().ok()?, id)).filter(|(_, id)| canonical::is_id(id))
+    Some((at.parse().ok()?, id)).filter(|(_, id)| plan::is_id(id))
 }
 
 /// The cache: every job of the running version, newest first.
@@ -467,7 +468,7 @@ pub(super) fn require_done(row: &JobRow, id: &str) -> Result<(), ApiError> {
 }
 
 pub(super) async fn row_of(state: &AppState, id: &str) -> Result<JobRow, ApiError> {
-    if !canonical::is_id(id) {
+    if !plan::is_id(id) {
         return Err(ApiError::NotFound(id.to_string()));
     }
     let row = state
@@ -481,8 +482,8 @@ pub(super) async fn row_of(state: &AppState, id: &str) -> Result<JobRow, ApiErro
         return Err(ApiError::Retired {
             id: row.id,
             version: row.result_version,
-            current: canonical::result_version(),
-            current_id: canonical::id_of_canonical(&row.spec),
+            current: plan::result_version(),
+            current_id: plan::id_of_canonical(&row.spec),
         });
     }
     Ok(row)

@@ -7,7 +7,7 @@ use super::error::ApiError;
 use crate::brdf::export::FRAMES;
 use crate::brdf::{BrdfError, Directions, Table, format};
 use crate::jobs::Problem;
-use crate::spec::canonical;
+use crate::plan;
 use crate::storage::JobRow;
 use axum::Json;
 use axum::body::Bytes;
@@ -148,7 +148,7 @@ pub struct EvalResponse {
 
 /// The parsed table of a done row (verified bytes, cached by digest).
 pub(super) async fn table_of(state: &AppState, id: &str) -> Result<(JobRow, Arc<Table>), ApiError> {
-    if !canonical::is_id(id) {
+    if !plan::is_id(id) {
         return Err(ApiError::NotFound(id.to_string()));
     }
     let app = &state.0;

@@ -29,6 +29,7 @@ pub mod result;
 pub use metrics::{Gauges, Metrics};
 pub use problem::Problem;
 
+use crate::plan;
 use crate::spec::{self, Spec};
 use crate::storage::{BlobStore, Index, JobRow, Status, StorageError, now_ms};
 use std::collections::HashMap;
@@ -275,7 +276,7 @@ impl Jobs {
     }
 
     /// Submit a parsed spec with its canonical JSON and id
-    /// ([`crate::spec::canonical::id`]).
+    /// ([`crate::plan::id_of_spec`]).
     pub async fn submit(
         self: &Arc<Self>,
         spec: &Spec,
@@ -385,7 +386,7 @@ impl Jobs {
             self.metrics.rejected.fetch_add(1, Ordering::Relaxed);
             return Err(JobError::QueueFull { capacity });
         }
-        let wavelengths = spec::wavelengths(spec).len() as i64;
+        let wavelengths = plan::wavelengths(spec).len() as i64;
         if let Err(e) = self
             .index
             .enqueue(id, canonical, wavelengths, now_ms())

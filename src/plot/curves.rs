@@ -25,8 +25,9 @@
 use crate::brdf::angles::dphi_prop_rad;
 use crate::brdf::{Directions, Table};
 use crate::physics::stokes::{Mueller, apply, degree_of_polarization};
+use crate::plan::StreamPolicy;
 use crate::solver::{self, Problem, ReflectionFourier, SolverError, Thickness};
-use crate::spec::{self, StreamPolicy};
+use crate::spec;
 use rayon::prelude::*;
 
 /// Unpolarized incident light.
@@ -651,7 +652,7 @@ mod tests {
         assert!(map.iter().all(|s| s.f11 > 0.0 && s.dop <= 1.0));
 
         // Table nodes (θ = 0 and θ = 90·sin(π/2·k/11)) reproduce a direct solve.
-        let problem = crate::spec::problem(&spec, None).unwrap();
+        let problem = crate::plan::problem(&spec, None).unwrap();
         let mu0 = table.grid.mu[4];
         let mu = table.grid.mu[7];
         let r = reflect(&problem, StreamPolicy::Fixed(8), &distinct([mu0, mu])).unwrap();

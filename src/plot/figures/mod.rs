@@ -47,7 +47,8 @@ pub use sweeps::{
 use super::csv::Csv;
 use super::figure::Figure;
 use crate::brdf::Table;
-use crate::spec::{Spec, StreamPolicy};
+use crate::plan::StreamPolicy;
+use crate::spec::Spec;
 use serde::Serialize;
 
 /// Why a figure cannot be made.

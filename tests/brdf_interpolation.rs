@@ -7,10 +7,10 @@
 
 use polbrdf::brdf::grid::PolarGrid;
 use polbrdf::brdf::table::{Directions, Interpolant, Table, WavelengthTable};
+use polbrdf::material::{self, Spec};
 use polbrdf::physics::stokes::Mueller;
 use polbrdf::plan;
 use polbrdf::solver;
-use polbrdf::spec::{self, Spec};
 use serde_json::json;
 
 fn spec_of(material: &str, tau: f64, base: serde_json::Value, wavelengths: &[f64]) -> Spec {
@@ -20,7 +20,7 @@ fn spec_of(material: &str, tau: f64, base: serde_json::Value, wavelengths: &[f64
         "base": base,
         "wavelengths_nm": wavelengths,
     });
-    spec::parse(&v.to_string()).expect("spec")
+    material::parse(&v.to_string()).expect("spec")
 }
 
 /// The seed's polar angles: midpoints of 51 equal steps of 0..90° (as
@@ -366,7 +366,7 @@ fn specular_matches_fresnel() {
         "wavelengths_nm": [550.0],
         "solver": {"streams": 8},
     });
-    let spec = spec::parse(&v.to_string()).unwrap();
+    let spec = material::parse(&v.to_string()).unwrap();
     let table = Table::from_spec(&spec, PolarGrid::default()).unwrap();
     let problem = plan::problem(&spec, Some(550.0)).unwrap();
     let solver::Base::Mirror { mueller } = &problem.base else {
@@ -442,7 +442,7 @@ fn measure_wavelength_and_large_particle_errors() {
                         "scatterer": {"mie": {"material": material, "radius_um": 1.0}}}],
             "base": "black", "wavelengths_nm": [550.0], "solver": {"streams": 32},
         });
-        let spec = spec::parse(&v.to_string()).unwrap();
+        let spec = material::parse(&v.to_string()).unwrap();
         let table = Table::from_spec(&spec, grid.clone()).unwrap();
         let wt = &table.wavelengths[0];
         let problem = plan::problem(&spec, Some(550.0)).unwrap();

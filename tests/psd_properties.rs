@@ -23,7 +23,7 @@
 //! (`PROPTEST_SEED=S` to change it).
 
 use polbrdf::solver::reflection;
-use polbrdf::{plan, spec};
+use polbrdf::{material, plan};
 use proptest::prelude::*;
 use proptest::test_runner::{Config, RngSeed, TestCaseError, TestRunner};
 use serde_json::{Value, json};
@@ -139,7 +139,7 @@ fn case() -> impl Strategy<Value = Case> {
 
 fn check(c: &Case, skipped: &Cell<usize>) -> Result<(), TestCaseError> {
     let text = c.spec().to_string();
-    let s = spec::parse(&text).map_err(|e| TestCaseError::fail(format!("parse: {e}")))?;
+    let s = material::parse(&text).map_err(|e| TestCaseError::fail(format!("parse: {e}")))?;
     let x_cut = plan::max_size_parameter(&s);
     if x_cut > X_CUT_MAX {
         skipped.set(skipped.get() + 1);

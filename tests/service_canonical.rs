@@ -31,7 +31,7 @@ fn documented_test_vector() {
     assert_eq!(independent, id.trim(), "documented id vs the recipe");
 
     // The implementation agrees with the documentation.
-    let spec = polbrdf::spec::parse(&spec_text).expect("documented spec parses");
+    let spec = polbrdf::material::parse(&spec_text).expect("documented spec parses");
     let (c, i) = polbrdf::plan::id_of_spec(&spec);
     assert_eq!(c, canonical, "canonical JSON of the documented spec");
     assert_eq!(i, id.trim());

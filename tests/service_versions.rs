@@ -83,7 +83,7 @@ async fn results_of_an_older_solver_version_are_not_served() {
         .iter()
         .map(|(_, s)| {
             let mut out = String::new();
-            polbrdf::spec::canonical::write_canonical(s, &mut out);
+            polbrdf::material::canonical::write_canonical(s, &mut out);
             out
         })
         .collect();

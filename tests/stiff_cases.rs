@@ -21,7 +21,7 @@ use polbrdf::solver::{
     Base, Layer, Problem, ReflectionFourier, Settings, Thickness, internal_field, phase,
     reflection, stream_fluxes,
 };
-use polbrdf::{plan, spec};
+use polbrdf::{material, plan};
 use std::f64::consts::PI;
 
 /// Record a failed check and go on (so that every worst value is measured and
@@ -880,7 +880,7 @@ fn energy_plane_albedo_and_flux_balance() {
 fn grazing_and_normal_directions() {
     let mu = [1e-4, 0.3, 0.8, 1.0];
     let (ig, i1) = (0, mu.len() - 1);
-    let silver = spec::parse(
+    let silver = material::parse(
         r#"{"layers":[{"optical_thickness":1,"scatterer":{"rayleigh":{"albedo":1}}}],
             "base":{"fresnel":{"material":"silver"}},"wavelengths_nm":[550]}"#,
     )
@@ -1079,7 +1079,7 @@ fn strong_absorbers_and_deep_stacks() {
                 ),
                 r#""black""#,
             );
-            let s = spec::parse(&text).unwrap_or_else(|e| panic!("{e}"));
+            let s = material::parse(&text).unwrap_or_else(|e| panic!("{e}"));
             let p = plan::problem(&s, Some(550.0)).unwrap_or_else(|e| panic!("{e}"));
             let label = format!(
                 "mie n={n} k={k} tau={t} (w={:.4}, L={})",
@@ -1104,7 +1104,7 @@ fn strong_absorbers_and_deep_stacks() {
                     &format!(r#"{{"optical_thickness":{t},"scatterer":{sc}}}"#),
                     base,
                 );
-                let s = spec::parse(&text).unwrap_or_else(|e| panic!("{e}"));
+                let s = material::parse(&text).unwrap_or_else(|e| panic!("{e}"));
                 let mut p = plan::problem(&s, Some(550.0)).unwrap();
                 // Thin start layer for the mirror's full path (see
                 // `grazing_and_normal_directions`).
@@ -1286,7 +1286,7 @@ fn strong_absorbers_and_deep_stacks() {
 
 /// Silver base (seed table) at 550 nm.
 fn silver_like() -> Base {
-    let s = spec::parse(
+    let s = material::parse(
         r#"{"layers":[{"optical_thickness":1,"scatterer":{"rayleigh":{"albedo":1}}}],
             "base":{"fresnel":{"material":"silver"}},"wavelengths_nm":[550]}"#,
     )

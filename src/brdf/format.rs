@@ -528,7 +528,7 @@ mod tests {
                  "scatterer": {{"rayleigh": {{"albedo": 0.9}}}}}}],
                 "base": {base}, "solver": {{"streams": 4}}}}"#
         );
-        let spec = crate::spec::parse(&text).unwrap();
+        let spec = crate::material::parse(&text).unwrap();
         Table::from_spec(&spec, PolarGrid::graded(7).unwrap()).unwrap()
     }
 
@@ -557,7 +557,7 @@ mod tests {
              "material": {"n": 1.5, "k": 0.001}, "radius_um": 1.0, "host_index": 1.0}}}],
              "base": {"fresnel": {"material": {"n": 0.14, "k": 4.1}}},
              "wavelengths_nm": [550], "solver": {"streams": 4}}"#;
-        let spec = crate::spec::parse(text).unwrap();
+        let spec = crate::material::parse(text).unwrap();
         let t = Table::from_spec(&spec, PolarGrid::graded(6).unwrap()).unwrap();
         assert!(t.wavelengths[0].correction.is_some());
         let back = from_bytes(&to_bytes(&t, DataType::F32).unwrap()).unwrap();

@@ -28,12 +28,12 @@
 use super::BrdfError;
 use super::angles::{self, Vec3, dphi_prop_rad, mu_of_theta_deg};
 use super::grid::{PolarGrid, STENCIL, Stencil};
+use crate::material::{self, Spec};
 use crate::physics::RefractiveIndex;
 use crate::physics::stokes::{Mueller, mul, rotation};
 use crate::plan::{self, Plan};
 use crate::solver::truncation::{CorrectionLayer, SingleScatterCorrection};
 use crate::solver::{self, Base};
-use crate::spec::{self, Spec};
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
 use std::time::Instant;
@@ -266,7 +266,7 @@ pub struct BuildOptions<'a> {
 impl Default for BuildOptions<'_> {
     fn default() -> Self {
         Self {
-            max_streams: spec::MAX_STREAMS,
+            max_streams: material::MAX_STREAMS,
             on_progress: &|_, _, _| {},
         }
     }
@@ -782,7 +782,7 @@ mod tests {
                  "scatterer": {{"rayleigh": {{"albedo": 0.95}}}}}}],
                 "base": {base}, "solver": {{"streams": 4}}}}"#
         );
-        let spec = crate::spec::parse(&text).unwrap();
+        let spec = crate::material::parse(&text).unwrap();
         Table::from_spec(&spec, PolarGrid::graded(8).unwrap()).unwrap()
     }
 
@@ -812,7 +812,7 @@ mod tests {
                      "material": {{"n": 1.5, "k": 0.001}}, "radius_um": 1.0, "host_index": 1.0}}}}}}],
                     "base": {base}, "wavelengths_nm": [550], "solver": {{"streams": 4}}}}"#
             );
-            let spec = crate::spec::parse(&text).unwrap();
+            let spec = crate::material::parse(&text).unwrap();
             let grid = PolarGrid::graded(8).unwrap();
             let t = Table::from_spec(&spec, grid.clone()).unwrap();
             let wt = &t.wavelengths[0];
@@ -875,7 +875,7 @@ mod tests {
     /// with fixed streams records its estimate too (from `N/2` and `3N/4`).
     #[test]
     fn tolerance_specs_record_streams_and_estimate() {
-        let spec = crate::spec::parse(
+        let spec = crate::material::parse(
             r#"{"layers": [{"optical_thickness": 0.4,
                  "scatterer": {"rayleigh": {"albedo": 0.95}}}],
                 "solver": {"tolerance": 1e-3}}"#,
@@ -886,7 +886,7 @@ mod tests {
         let w = &t.metadata.wavelengths[0];
         let e = w.error_estimate.as_ref().expect("estimate");
         assert_eq!(w.streams, e.streams[2]);
-        assert!(e.max_err_f11 <= 1e-3 || w.streams * 2 > crate::spec::MAX_STREAMS);
+        assert!(e.max_err_f11 <= 1e-3 || w.streams * 2 > crate::material::MAX_STREAMS);
         let fixed = table(r#""black""#);
         assert_eq!(fixed.metadata.wavelengths[0].streams, 4);
         let e = fixed.metadata.wavelengths[0]

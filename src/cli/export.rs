@@ -7,7 +7,7 @@ use crate::brdf::format::{self, DataType};
 use crate::brdf::mitsuba::{self, BelowHorizon, MitsubaOptions};
 use crate::brdf::table::BuildOptions;
 use crate::brdf::{Directions, PolarGrid, Table};
-use crate::spec;
+use crate::material;
 use clap::{Args, ValueEnum};
 use serde::Deserialize;
 use serde_json::{Value, json};
@@ -105,7 +105,7 @@ fn write(path: &str, bytes: &[u8]) -> Result<(), String> {
 
 fn read_points(path: &str) -> Result<Vec<Directions>, String> {
     let text = std::fs::read_to_string(path).map_err(|e| format!("{path}: {e}"))?;
-    let p: PointsFile = spec::json::from_str(&text).map_err(|e| format!("{path}: {e}"))?;
+    let p: PointsFile = material::from_json_str(&text).map_err(|e| format!("{path}: {e}"))?;
     for (i, d) in p.points.iter().enumerate() {
         d.validate()
             .map_err(|e| format!("{path}: points[{i}].{e}"))?;
@@ -248,7 +248,7 @@ fn export_mitsuba(a: &ExportArgs, table: &Table) -> Result<Value, String> {
 /// Returns the file's summary and the table (its metadata has the
 /// per-wavelength streams, orders, timings and error estimates).
 pub fn write_table(
-    spec: &spec::Spec,
+    spec: &material::Spec,
     spec_path: &str,
     out: &str,
     options: &BuildOptions,

@@ -31,9 +31,9 @@
 
 use super::progress::Progress;
 use crate::brdf::angles::{MU_FLOOR, dphi_prop_rad, mu_of_theta_deg};
+use crate::material::{self, Spec, SpecError};
 use crate::plan;
 use crate::solver::{self, Base, fourier_sum};
-use crate::spec::{self, Spec, SpecError};
 use clap::Args;
 use serde::{Deserialize, Serialize};
 use serde_json::{Value, json};
@@ -67,9 +67,9 @@ pub fn default_max_streams() -> usize {
     crate::http::config::Limits::default().max_streams
 }
 
-/// `--max-streams` values: 1 to the spec's hard limit [`spec::MAX_STREAMS`].
+/// `--max-streams` values: 1 to the spec's hard limit [`material::MAX_STREAMS`].
 pub fn max_streams_parser() -> clap::builder::RangedU64ValueParser<usize> {
-    clap::builder::RangedU64ValueParser::<usize>::new().range(1..=spec::MAX_STREAMS as u64)
+    clap::builder::RangedU64ValueParser::<usize>::new().range(1..=material::MAX_STREAMS as u64)
 }
 
 /// Refuse an explicit `solver.streams` over `max_streams` (`--max-streams`),
@@ -142,7 +142,7 @@ impl MuSet {
 
 fn read_json<T: for<'de> Deserialize<'de>>(path: &str) -> Result<T, String> {
     let text = std::fs::read_to_string(path).map_err(|e| format!("{path}: {e}"))?;
-    spec::json::from_str(&text).map_err(|e| format!("{path}: {e}"))
+    material::from_json_str(&text).map_err(|e| format!("{path}: {e}"))
 }
 
 fn check_angle(what: &str, v: f64, lo: f64, hi: f64) -> Result<(), String> {
@@ -203,7 +203,7 @@ pub fn run(a: &SolveArgs) -> Result<Value, String> {
     let started = Instant::now();
     let spec_path = a.spec.as_str();
     let text = std::fs::read_to_string(spec_path).map_err(|e| format!("{spec_path}: {e}"))?;
-    let spec = spec::parse(&text).map_err(|e| format!("{spec_path}: {e}"))?;
+    let spec = material::parse(&text).map_err(|e| format!("{spec_path}: {e}"))?;
     // Refuse before solving what the service or the solver would refuse
     // (docs/spec.md).
     check_stream_cap(&spec, a.max_streams).map_err(|e| format!("{spec_path}: {e}"))?;
@@ -488,7 +488,7 @@ mod tests {
     use super::*;
 
     fn spec_with_streams(n: usize) -> Spec {
-        spec::parse(&format!(
+        material::parse(&format!(
             r#"{{"layers":[{{"optical_thickness":1,"scatterer":{{"rayleigh":{{"albedo":0.9}}}}}}],"solver":{{"streams":{n}}}}}"#
         ))
         .unwrap()
@@ -503,7 +503,7 @@ mod tests {
         assert!(check_stream_cap(&spec_with_streams(256), 256).is_ok());
         // No explicit streams: nothing to cap here (a tolerance is capped by
         // check_solvable and the solver).
-        let tol = spec::parse(
+        let tol = material::parse(
             r#"{"layers":[{"optical_thickness":1,"scatterer":{"rayleigh":{"albedo":0.9}}}],"solver":{"tolerance":1e-3}}"#,
         )
         .unwrap();
@@ -516,7 +516,7 @@ mod tests {
             default_max_streams(),
             crate::http::config::Limits::default().max_streams
         );
-        assert!(default_max_streams() <= spec::MAX_STREAMS);
+        assert!(default_max_streams() <= material::MAX_STREAMS);
     }
 
     #[test]

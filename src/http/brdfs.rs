@@ -3,8 +3,8 @@
 use super::AppState;
 use super::error::ApiError;
 use crate::jobs::{Problem, Submission};
+use crate::material::{self, ScattererSpec, Spec};
 use crate::plan;
-use crate::spec::{self, ScattererSpec, Spec};
 use crate::storage::{JobRow, Status, rfc3339};
 use axum::Json;
 use axum::body::Bytes;
@@ -281,12 +281,12 @@ pub async fn create_brdf(
     }
     let body = body.map_err(|e| ApiError::from_body(e, state.0.config.max_body_bytes))?;
     let text = std::str::from_utf8(&body).map_err(|e| {
-        ApiError::InvalidSpec(spec::SpecError {
+        ApiError::InvalidSpec(material::SpecError {
             path: "$".into(),
             message: format!("the body is not UTF-8: {e}"),
         })
     })?;
-    let spec = spec::parse(text).map_err(ApiError::InvalidSpec)?;
+    let spec = material::parse(text).map_err(ApiError::InvalidSpec)?;
     check_limits(&spec, &state.0.config.limits)?;
     plan::check_solvable(&spec, state.0.config.limits.max_streams)
         .map_err(ApiError::InvalidSpec)?;

@@ -3,7 +3,7 @@
 //! the details of internal errors.
 
 use crate::jobs::{JobError, Problem, problem};
-use crate::spec::SpecError;
+use crate::material::SpecError;
 use axum::http::{HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
 

@@ -309,7 +309,7 @@ pub async fn post_eval(
 ) -> Result<Response, ApiError> {
     let body = body.map_err(|e| ApiError::from_body(e, state.0.config.max_body_bytes))?;
     let req: EvalRequest =
-        crate::spec::json::from_slice(&body).map_err(|e| ApiError::InvalidQuery {
+        crate::material::from_json_slice(&body).map_err(|e| ApiError::InvalidQuery {
             path: e.path,
             message: e.message,
         })?;

@@ -29,8 +29,8 @@ pub mod result;
 pub use metrics::{Gauges, Metrics};
 pub use problem::Problem;
 
+use crate::material::{self, Spec};
 use crate::plan;
-use crate::spec::{self, Spec};
 use crate::storage::{BlobStore, Index, JobRow, Status, StorageError, now_ms};
 use std::collections::HashMap;
 use std::panic::{AssertUnwindSafe, catch_unwind};
@@ -217,7 +217,7 @@ impl Jobs {
                 self.index.fail(&row.id, &to_json(&p), now).await?;
                 continue;
             }
-            let spec = match spec::parse(&row.spec) {
+            let spec = match material::parse(&row.spec) {
                 Ok(s) => s,
                 Err(e) => {
                     let p = Problem::new("invalid-spec", "Invalid spec", 422, e.message.clone())
@@ -426,7 +426,7 @@ impl Jobs {
         };
         if bytes.is_none() {
             tracing::warn!(id = %row.id, "result blob missing, corrupt or stale; solving again");
-            if let Ok(spec) = spec::parse(&row.spec) {
+            if let Ok(spec) = material::parse(&row.spec) {
                 // Not a cache hit: `decide` sees the blob gone and enqueues.
                 match self.submit(&spec, &row.spec, &row.id).await {
                     Ok(_) | Err(JobError::QueueFull { .. }) | Err(JobError::ShuttingDown) => {}

@@ -14,9 +14,9 @@
 use crate::brdf::format::{self, DataType};
 use crate::brdf::table::{self, BuildOptions};
 use crate::brdf::{BrdfError, PolarGrid, Table};
+use crate::material::Spec;
 use crate::plan::Plan;
 use crate::solver;
-use crate::spec::Spec;
 use std::time::Instant;
 
 /// Media type of the stored bytes, with the table format version

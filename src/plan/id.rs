@@ -3,7 +3,7 @@
 //!
 //! The id is the lowercase hex SHA-256 ([`crate::digest`]) of
 //! `"polbrdf-spec/" + SCHEMA_VERSION + "\n" + "polbrdf-solver/" + SOLVER_VERSION + "\n" + canonical_json`,
-//! with the canonical JSON of `crate::spec::canonical` (steps 1 and 2).
+//! with the canonical JSON of `crate::material::canonical` (steps 1 and 2).
 //!
 //! Mixing both versions into the hash (as sccache does) retires every cached
 //! result at once when the meaning of a spec or the solver's output changes:
@@ -11,8 +11,8 @@
 //! [`SOLVER_VERSION`] when results change beyond round-off.
 
 use crate::digest;
-use crate::spec::Spec;
-use crate::spec::canonical::canonical_json;
+use crate::material::Spec;
+use crate::material::canonical::canonical_json;
 
 /// Version of the spec schema mixed into every id.
 pub const SCHEMA_VERSION: &str = "1";
@@ -55,7 +55,7 @@ pub fn is_id(s: &str) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::spec::parse;
+    use crate::material::parse;
 
     #[test]
     fn equal_canonical_forms_have_equal_ids() {

@@ -5,12 +5,12 @@
 //! the mirror Mueller matrix of `physics::fresnel`.
 
 use super::mie::mie_optics;
+use crate::material::{
+    BaseSpec, DEFAULT_STREAMS, MaterialSpec, ScattererSpec, Spec, SpecError, ThicknessSpec,
+};
 use crate::physics::expansion::GreekCoefficients;
 use crate::physics::{RefractiveIndex, fresnel, materials};
 use crate::solver::{self, Base, Layer, Problem, Settings, Thickness};
-use crate::spec::{
-    BaseSpec, DEFAULT_STREAMS, MaterialSpec, ScattererSpec, Spec, SpecError, ThicknessSpec,
-};
 use std::sync::Arc;
 
 pub(super) fn resolve_index(
@@ -159,7 +159,7 @@ pub fn settings(spec: &Spec) -> Settings {
 pub enum StreamPolicy {
     /// Exactly this many streams (given, or the default).
     Fixed(usize),
-    /// The cheapest power of two up to [`crate::spec::MAX_STREAMS`] meeting this
+    /// The cheapest power of two up to [`crate::material::MAX_STREAMS`] meeting this
     /// estimated relative error of f11.
     Tolerance(f64),
 }
@@ -184,8 +184,8 @@ pub fn wavelengths(spec: &Spec) -> Vec<Option<f64>> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::spec::canonical::canonical_json;
-    use crate::spec::parse;
+    use crate::material::canonical::canonical_json;
+    use crate::material::parse;
 
     /// The canonical form writes the stream count the solver is given when
     /// the spec names neither `streams` nor `tolerance`.

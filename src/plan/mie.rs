@@ -3,8 +3,8 @@
 //! parameter a spec asks for (its cost).
 
 use super::lower::resolve_index;
+use crate::material::{MieSpec, ScattererSpec, SizeDistributionSpec, Spec, SpecError};
 use crate::physics::expansion::GreekCoefficients;
-use crate::spec::{MieSpec, ScattererSpec, SizeDistributionSpec, Spec, SpecError};
 
 pub(super) fn mie_optics(
     path: &str,

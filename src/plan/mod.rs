@@ -1,4 +1,4 @@
-//! Lowering: a validated spec (`crate::spec`), once, into what the table
+//! Lowering: a validated spec (`crate::material`), once, into what the table
 //! builder and the job layer run (docs/service.md, docs/solver.md).
 //!
 //! A [`Plan`] holds the canonical physical spec and its id ([`id`]), the
@@ -31,9 +31,9 @@ pub use lower::{
 pub use mie::max_size_parameter;
 pub use solvable::check_solvable;
 
+use crate::material::{Spec, SpecError};
 use crate::physics::RefractiveIndex;
 use crate::solver::{Problem, Settings};
-use crate::spec::{Spec, SpecError};
 
 /// A spec lowered for solving.
 #[derive(Clone)]
@@ -62,7 +62,7 @@ pub struct Lowered {
 }
 
 impl Plan {
-    /// Lower a validated spec (`crate::spec::parse`); fails as [`problem`]
+    /// Lower a validated spec (`crate::material::parse`); fails as [`problem`]
     /// does (a Mie or expansion refusal, naming the layer).
     pub fn lower(spec: &Spec) -> Result<Self, SpecError> {
         Self::lower_naming_wavelength(spec).map_err(|(e, _)| e)
@@ -98,7 +98,7 @@ impl Plan {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::spec::parse;
+    use crate::material::parse;
 
     #[test]
     fn a_plan_holds_one_problem_per_wavelength_and_the_service_id() {

@@ -4,9 +4,9 @@
 //! non-Mie layers and the base, hence live with the lowering.
 
 use super::{StreamPolicy, fresnel_indices, layer_optics, stream_policy, wavelengths};
+use crate::material::{BaseSpec, MaterialSpec, ScattererSpec, Spec, SpecError, ThicknessSpec};
 use crate::physics::{RefractiveIndex, materials};
 use crate::solver::{self, Layer, SolverError, Thickness};
-use crate::spec::{BaseSpec, MaterialSpec, ScattererSpec, Spec, SpecError, ThicknessSpec};
 
 /// Everything the solver and the physics would refuse at solve time that
 /// the spec alone decides, checked cheaply before any solve (the service at
@@ -155,8 +155,8 @@ fn material_index(m: &MaterialSpec, wavelength_nm: f64) -> Result<RefractiveInde
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::material::{MAX_STREAMS, parse};
     use crate::physics::materials;
-    use crate::spec::{MAX_STREAMS, parse};
 
     const RAYLEIGH: &str = r#"{"optical_thickness":1,"scatterer":{"rayleigh":{"albedo":1}}}"#;
 

@@ -24,10 +24,10 @@
 
 use crate::brdf::angles::dphi_prop_rad;
 use crate::brdf::{Directions, Table};
+use crate::material;
 use crate::physics::stokes::{Mueller, apply, degree_of_polarization};
 use crate::plan::StreamPolicy;
 use crate::solver::{self, Problem, ReflectionFourier, SolverError, Thickness};
-use crate::spec;
 use rayon::prelude::*;
 
 /// Unpolarized incident light.
@@ -137,10 +137,14 @@ pub fn reflect(
             p.settings.streams = n;
             solver::reflection(&p, mu)
         }
-        StreamPolicy::Tolerance(t) => {
-            solver::accuracy::reflection_to_tolerance(problem, mu, t, spec::MAX_STREAMS, &|_| {})
-                .map(|e| e.reflection)
-        }
+        StreamPolicy::Tolerance(t) => solver::accuracy::reflection_to_tolerance(
+            problem,
+            mu,
+            t,
+            material::MAX_STREAMS,
+            &|_| {},
+        )
+        .map(|e| e.reflection),
     }
 }
 
@@ -628,7 +632,7 @@ mod tests {
     /// directions, and the table at its nodes is the direct solve.
     #[test]
     fn lobe_samples_are_table_evaluations() {
-        let spec = crate::spec::parse(
+        let spec = crate::material::parse(
             r#"{"layers":[{"optical_thickness":0.5,"scatterer":{"rayleigh":{"albedo":0.9}}}],
                 "base":{"lambertian":{"albedo":0.3}},"solver":{"streams":8}}"#,
         )

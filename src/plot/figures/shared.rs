@@ -4,12 +4,12 @@
 
 use super::{PlotError, SolveOptions};
 use crate::brdf::Table;
+use crate::material::Spec;
 use crate::plan::{self, StreamPolicy};
 use crate::plot::csv::{Cell, Csv};
 use crate::plot::curves::{self, DopSample};
 use crate::plot::figure::{Axis, Dash, Figure, LinePanel, Panel, nice_ceil};
 use crate::solver::Problem;
-use crate::spec::Spec;
 
 /// Image size of the one-panel line figures unless the caller gives one.
 pub(super) const LINE_SIZE: (u32, u32) = (900, 540);

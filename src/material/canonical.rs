@@ -152,7 +152,7 @@ pub fn write_canonical(v: &Value, out: &mut String) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::spec::parse;
+    use crate::material::parse;
 
     #[test]
     fn defaults_order_and_spelling_do_not_change_the_form() {

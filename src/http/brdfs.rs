@@ -2,7 +2,8 @@
 
 use super::AppState;
 use super::error::ApiError;
-use crate::jobs::{Problem, Submission};
+use super::problem::Problem;
+use crate::jobs::{FailureRecord, Submission};
 use crate::material::{self, ScattererSpec, Spec};
 use crate::plan;
 use crate::storage::{JobRow, Status, rfc3339};
@@ -130,10 +131,7 @@ impl BrdfResource {
             error_estimate: row.error_estimate,
             wall_time_ms: row.wall_time_ms.clone(),
             wavelengths: row.wavelengths,
-            error: row
-                .error
-                .as_deref()
-                .and_then(|e| serde_json::from_str(e).ok()),
+            error: FailureRecord::of_row(row).map(Problem::from),
             result,
             created_at: rfc3339(row.created_at),
             updated_at: rfc3339(row.updated_at),
@@ -453,10 +451,8 @@ pub(super) fn require_done(row: &JobRow, id: &str) -> Result<(), ApiError> {
             status: row.status.as_str(),
         }),
         Status::Failed => {
-            let problem = row
-                .error
-                .as_deref()
-                .and_then(|e| serde_json::from_str(e).ok())
+            let problem = FailureRecord::of_row(row)
+                .map(Problem::from)
                 .unwrap_or_else(|| Problem::new("job-failed", "BRDF job failed", 409, "unknown"));
             Err(ApiError::JobFailed {
                 id: id.to_string(),

@@ -4,9 +4,9 @@
 use super::AppState;
 use super::brdfs::IMMUTABLE;
 use super::error::ApiError;
+use super::problem::Problem;
 use crate::brdf::export::FRAMES;
 use crate::brdf::{BrdfError, Directions, Table, format};
-use crate::jobs::Problem;
 use crate::plan;
 use crate::storage::JobRow;
 use axum::Json;

@@ -15,6 +15,7 @@ pub mod config;
 pub mod error;
 pub mod eval;
 pub mod ops;
+pub mod problem;
 
 pub use config::{Config, Limits, LogFormat};
 pub use error::ApiError;
@@ -61,7 +62,7 @@ pub struct AppState(pub Arc<App>);
         license(name = "MIT OR Apache-2.0")
     ),
     modifiers(&BearerAuth),
-    components(schemas(crate::jobs::Problem, brdfs::TableFormat, brdfs::DenseType, brdfs::TableBytes)),
+    components(schemas(problem::Problem, brdfs::TableFormat, brdfs::DenseType, brdfs::TableBytes)),
     tags(
         (name = "brdfs", description = "Submit specs, follow jobs, fetch results"),
         (name = "operations", description = "Health, readiness, metrics")

@@ -3,6 +3,7 @@
 use super::AppState;
 use super::error::ApiError;
 use super::problem::Problem;
+use super::results::{IMMUTABLE, require_done, row_of, stored_bytes, table_of};
 use crate::jobs::{FailureRecord, Submission};
 use crate::material::{self, ScattererSpec, Spec};
 use crate::plan;
@@ -442,49 +443,6 @@ pub async fn list_brdfs(
     Ok(res)
 }
 
-/// A result is served only from a done row: queued/running → not ready
-/// (409 with Retry-After), failed → the job's typed problem.
-pub(super) fn require_done(row: &JobRow, id: &str) -> Result<(), ApiError> {
-    match row.status {
-        Status::Queued | Status::Running => Err(ApiError::NotReady {
-            id: id.to_string(),
-            status: row.status.as_str(),
-        }),
-        Status::Failed => {
-            let problem = FailureRecord::of_row(row)
-                .map(Problem::from)
-                .unwrap_or_else(|| Problem::new("job-failed", "BRDF job failed", 409, "unknown"));
-            Err(ApiError::JobFailed {
-                id: id.to_string(),
-                problem: Box::new(problem),
-            })
-        }
-        Status::Done => Ok(()),
-    }
-}
-
-pub(super) async fn row_of(state: &AppState, id: &str) -> Result<JobRow, ApiError> {
-    if !plan::is_id(id) {
-        return Err(ApiError::NotFound(id.to_string()));
-    }
-    let row = state
-        .0
-        .jobs
-        .index()
-        .get(id)
-        .await?
-        .ok_or_else(|| ApiError::NotFound(id.to_string()))?;
-    if !row.is_current() {
-        return Err(ApiError::Retired {
-            id: row.id,
-            version: row.result_version,
-            current: plan::result_version(),
-            current_id: plan::id_of_canonical(&row.spec),
-        });
-    }
-    Ok(row)
-}
-
 /// A BRDF job: state, progress, canonical spec, timings, error estimate,
 /// the typed error of a failed job, and the result digest once done.
 #[utoipa::path(
@@ -528,9 +486,6 @@ fn none_match(headers: &HeaderMap, digest: &str) -> bool {
 /// Media type of `format=mitsuba` (a Mitsuba 3 tensor file has no
 /// registered type).
 pub const MITSUBA_MEDIA_TYPE: &str = "application/octet-stream";
-
-/// Immutable results: cacheable by any HTTP cache for a year.
-pub const IMMUTABLE: &str = "public, max-age=31536000, immutable";
 
 /// Formats of `GET …/table`.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize, ToSchema)]
@@ -864,7 +819,7 @@ pub async fn get_table(
     let q = table_query(pairs)?;
     let format = q.format.unwrap_or_default();
     if format != TableFormat::Binary {
-        let (row, table) = super::eval::table_of(&state, &id).await?;
+        let (row, table) = table_of(&state, &id).await?;
         let key = format!(
             "{}?{format:?}&{:?}&{:?}&{:?}&{:?}",
             row.digest.as_deref().unwrap_or(""),
@@ -927,12 +882,7 @@ pub async fn get_table(
         h.insert(header::CACHE_CONTROL, HeaderValue::from_static(IMMUTABLE));
         return Ok(res);
     }
-    let Some(bytes) = state.0.jobs.result_bytes(&row).await? else {
-        return Err(ApiError::NotReady {
-            id,
-            status: "being solved again (the stored result was missing or corrupt)",
-        });
-    };
+    let bytes = stored_bytes(&state, &row).await?;
     let media = row
         .media_type
         .as_deref()

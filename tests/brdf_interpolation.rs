@@ -7,9 +7,10 @@
 
 use polbrdf::brdf::grid::PolarGrid;
 use polbrdf::brdf::table::{Directions, Interpolant, Table, WavelengthTable};
+use polbrdf::material::{self, Spec};
 use polbrdf::physics::stokes::Mueller;
+use polbrdf::plan;
 use polbrdf::solver;
-use polbrdf::spec::{self, Spec};
 use serde_json::json;
 
 fn spec_of(material: &str, tau: f64, base: serde_json::Value, wavelengths: &[f64]) -> Spec {
@@ -19,7 +20,7 @@ fn spec_of(material: &str, tau: f64, base: serde_json::Value, wavelengths: &[f64
         "base": base,
         "wavelengths_nm": wavelengths,
     });
-    spec::parse(&v.to_string()).expect("spec")
+    material::parse(&v.to_string()).expect("spec")
 }
 
 /// The seed's polar angles: midpoints of 51 equal steps of 0..90° (as
@@ -119,7 +120,7 @@ fn measure_interpolation_error() {
             let grid = PolarGrid::graded(n).unwrap();
             let table = Table::from_spec(&spec, grid.clone()).unwrap();
             for wt in &table.wavelengths {
-                let problem = spec::problem(&spec, wt.wavelength_nm).unwrap();
+                let problem = plan::problem(&spec, wt.wavelength_nm).unwrap();
                 for (ck, &(what, k)) in configs.iter().enumerate() {
                     let e = compare(wt, &grid, &problem, what, k);
                     let w = &mut worst[gk * configs.len() + ck];
@@ -208,7 +209,7 @@ fn off_grid_points_match_direct_solves() {
             .map(|t| t.to_radians().cos())
             .collect();
         for wl in [550.0, 650.0] {
-            let problem = spec::problem(&spec, Some(wl)).unwrap();
+            let problem = plan::problem(&spec, Some(wl)).unwrap();
             let direct = solver::reflection(&problem, &mu).unwrap();
             let (mut err, mut fmax) = (0.0f64, 0.0f64);
             for (iv, &ti) in OFF_GRID_THETA.iter().enumerate() {
@@ -249,7 +250,7 @@ fn nodes_match_direct_solves() {
     let nodes = [0usize, 9, 31, 50, 62, 63];
     let theta: Vec<f64> = nodes.iter().map(|&k| grid.theta_deg[k]).collect();
     let mu: Vec<f64> = nodes.iter().map(|&k| grid.mu[k]).collect();
-    let problem = spec::problem(&spec, Some(650.0)).unwrap();
+    let problem = plan::problem(&spec, Some(650.0)).unwrap();
     let direct = solver::reflection(&problem, &mu).unwrap();
     let (mut err, mut fmax) = (0.0f64, 0.0f64);
     for (iv, &ti) in theta.iter().enumerate() {
@@ -365,9 +366,9 @@ fn specular_matches_fresnel() {
         "wavelengths_nm": [550.0],
         "solver": {"streams": 8},
     });
-    let spec = spec::parse(&v.to_string()).unwrap();
+    let spec = material::parse(&v.to_string()).unwrap();
     let table = Table::from_spec(&spec, PolarGrid::default()).unwrap();
-    let problem = spec::problem(&spec, Some(550.0)).unwrap();
+    let problem = plan::problem(&spec, Some(550.0)).unwrap();
     let solver::Base::Mirror { mueller } = &problem.base else {
         panic!("mirror base expected")
     };
@@ -410,7 +411,7 @@ fn measure_wavelength_and_large_particle_errors() {
     for material in ["TiO2", "iron oxide"] {
         let spec = spec_of(material, 1.0, json!("black"), &[550.0, 650.0]);
         let table = Table::from_spec(&spec, grid.clone()).unwrap();
-        let problem = spec::problem(&spec, Some(600.0)).unwrap();
+        let problem = plan::problem(&spec, Some(600.0)).unwrap();
         let mu: Vec<f64> = theta.iter().map(|t| t.to_radians().cos()).collect();
         let direct = solver::reflection(&problem, &mu).unwrap();
         let (mut err, mut fmax) = (0.0f64, 0.0f64);
@@ -441,10 +442,10 @@ fn measure_wavelength_and_large_particle_errors() {
                         "scatterer": {"mie": {"material": material, "radius_um": 1.0}}}],
             "base": "black", "wavelengths_nm": [550.0], "solver": {"streams": 32},
         });
-        let spec = spec::parse(&v.to_string()).unwrap();
+        let spec = material::parse(&v.to_string()).unwrap();
         let table = Table::from_spec(&spec, grid.clone()).unwrap();
         let wt = &table.wavelengths[0];
-        let problem = spec::problem(&spec, Some(550.0)).unwrap();
+        let problem = plan::problem(&spec, Some(550.0)).unwrap();
         let e = compare(wt, &grid, &problem, Interpolant::SumOfCosines, 6);
         println!(
             "{material} r = 1 um, tau 1, black, 32 streams, {} orders: {:.1e} of max f11 ({:.1e} weighted), build {:.0} ms",

@@ -117,7 +117,7 @@ fn rows_of_every_family_with_true_errors_and_estimates() {
 /// its reference must agree with `polbrdf solve` at the same settings.
 #[test]
 fn true_error_matches_an_independent_pair_of_solves() {
-    use polbrdf::{solver, spec};
+    use polbrdf::{material, plan, solver};
     let dir = scratch("indep");
     let path = dir.join("spec.json");
     std::fs::write(&path, SPEC).unwrap();
@@ -134,8 +134,8 @@ fn true_error_matches_an_independent_pair_of_solves() {
     let got = v["rows"][0]["max_err_f11"].as_f64().unwrap();
     // The same comparison on the documented probe grid (11 polar angles at
     // the midpoints of 0..90 deg for both directions, 13 azimuths 0..180 deg).
-    let sp = spec::parse(SPEC).unwrap();
-    let p = spec::problem(&sp, None).unwrap();
+    let sp = material::parse(SPEC).unwrap();
+    let p = plan::problem(&sp, None).unwrap();
     let mut coarse = p.clone();
     coarse.settings.streams = 8;
     let mut fine = p;

@@ -14,9 +14,9 @@ fn mie_problem(radius_um: f64) -> Problem {
         r#"{{"layers": [{{"optical_thickness": 1.0, "scatterer": {{"mie": {{"material": {{"n": 1.5, "k": 0.001}}, "radius_um": {radius_um}, "host_index": 1.0}}}}}}],
             "base": "black", "wavelengths_nm": [550]}}"#
     );
-    let spec = polbrdf::spec::parse(&spec).unwrap();
-    let wl = polbrdf::spec::wavelengths(&spec)[0];
-    polbrdf::spec::problem(&spec, wl).unwrap()
+    let spec = polbrdf::material::parse(&spec).unwrap();
+    let wl = polbrdf::plan::wavelengths(&spec)[0];
+    polbrdf::plan::problem(&spec, wl).unwrap()
 }
 
 fn solve(p: &Problem, streams: usize, mu: &[f64]) -> ReflectionFourier {

@@ -8,7 +8,7 @@ mod service_support;
 
 use polbrdf::brdf::angles::mu_of_theta_deg;
 use polbrdf::brdf::table::{BuildOptions, Table};
-use polbrdf::spec;
+use polbrdf::{material, plan};
 use service_support::*;
 use std::f64::consts::PI;
 
@@ -21,7 +21,7 @@ fn tio2(base: &str, needs: &str) -> String {
 }
 
 fn table(text: &str) -> Table {
-    let s = spec::parse(text).unwrap();
+    let s = material::parse(text).unwrap();
     Table::from_spec_needs(&s, &BuildOptions::default()).unwrap()
 }
 
@@ -31,7 +31,7 @@ fn max_abs(v: &[f64]) -> f64 {
 
 #[test]
 fn needs_at_their_defaults_keep_the_id() {
-    let id = |needs: &str| spec::canonical::id(&spec::parse(&tio2("\"black\"", needs)).unwrap());
+    let id = |needs: &str| plan::id_of_spec(&material::parse(&tio2("\"black\"", needs)).unwrap());
     let (canonical, plain) = id("");
     assert!(!canonical.contains("needs"), "{canonical}");
     for same in [
@@ -115,7 +115,7 @@ fn a_coarse_grid_states_its_interpolation_error() {
                 v["needs"] = serde_json::json!({"grid": {"polar_nodes": nodes}});
                 v.to_string()
             };
-            let s = spec::parse(&text).unwrap();
+            let s = material::parse(&text).unwrap();
             let t = Table::from_spec_needs(&s, &BuildOptions::default()).unwrap();
             let stated = t.metadata.wavelengths[0]
                 .interpolation_error
@@ -144,7 +144,7 @@ fn a_coarse_grid_states_its_interpolation_error() {
                 })
                 .collect();
             let mu: Vec<f64> = theta.iter().map(|&d| mu_of_theta_deg(d)).collect();
-            let p = spec::problem(&s, s.wavelengths_nm.as_ref().map(|w| w[0])).unwrap();
+            let p = plan::problem(&s, s.wavelengths_nm.as_ref().map(|w| w[0])).unwrap();
             let direct = polbrdf::solver::reflection(&p, &mu).unwrap();
             let mut worst: f64 = 0.0;
             for (o, &to) in theta.iter().enumerate() {

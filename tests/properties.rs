@@ -28,7 +28,7 @@ use common::{Worst, garcia_siewert, max_diff, reversed};
 use polbrdf::physics::quadrature::gauss_legendre_on;
 use polbrdf::physics::stokes;
 use polbrdf::solver::{Base, Problem, reflection};
-use polbrdf::spec;
+use polbrdf::{material, plan};
 use proptest::prelude::*;
 use proptest::test_runner::{Config, RngSeed, TestCaseError, TestRunner};
 use serde_json::{Value, json};
@@ -302,9 +302,9 @@ struct Stats {
 /// (order 0; `plane_albedo`).
 fn check(c: &Case, stats: &RefCell<Stats>, strict: bool) -> Result<(), TestCaseError> {
     let text = to_json(c).to_string();
-    let s = spec::parse(&text).map_err(|e| TestCaseError::fail(format!("parse: {e}")))?;
+    let s = material::parse(&text).map_err(|e| TestCaseError::fail(format!("parse: {e}")))?;
     let mut p =
-        spec::problem(&s, Some(550.0)).map_err(|e| TestCaseError::fail(format!("problem: {e}")))?;
+        plan::problem(&s, Some(550.0)).map_err(|e| TestCaseError::fail(format!("problem: {e}")))?;
     if matches!(p.base, Base::Mirror { .. }) {
         // The mirror runs the full doubling path, whose beam columns and user
         // rows are two discretisations of the start layer agreeing to O(δ²)

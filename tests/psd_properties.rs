@@ -23,7 +23,7 @@
 //! (`PROPTEST_SEED=S` to change it).
 
 use polbrdf::solver::reflection;
-use polbrdf::spec;
+use polbrdf::{material, plan};
 use proptest::prelude::*;
 use proptest::test_runner::{Config, RngSeed, TestCaseError, TestRunner};
 use serde_json::{Value, json};
@@ -139,13 +139,13 @@ fn case() -> impl Strategy<Value = Case> {
 
 fn check(c: &Case, skipped: &Cell<usize>) -> Result<(), TestCaseError> {
     let text = c.spec().to_string();
-    let s = spec::parse(&text).map_err(|e| TestCaseError::fail(format!("parse: {e}")))?;
-    let x_cut = spec::max_size_parameter(&s);
+    let s = material::parse(&text).map_err(|e| TestCaseError::fail(format!("parse: {e}")))?;
+    let x_cut = plan::max_size_parameter(&s);
     if x_cut > X_CUT_MAX {
         skipped.set(skipped.get() + 1);
     }
     prop_assume!(x_cut <= X_CUT_MAX);
-    let p = spec::problem(&s, Some(WAVELENGTH_NM))
+    let p = plan::problem(&s, Some(WAVELENGTH_NM))
         .map_err(|e| TestCaseError::fail(format!("problem (x_cut = {x_cut:.1}): {e}")))?;
     let r = reflection(&p, &[0.3, 0.7, 1.0])
         .map_err(|e| TestCaseError::fail(format!("solve (x_cut = {x_cut:.1}): {e}")))?;

@@ -31,10 +31,10 @@ fn documented_test_vector() {
     assert_eq!(independent, id.trim(), "documented id vs the recipe");
 
     // The implementation agrees with the documentation.
-    let spec = polbrdf::spec::parse(&spec_text).expect("documented spec parses");
-    let (c, i) = polbrdf::spec::canonical::id(&spec);
+    let spec = polbrdf::material::parse(&spec_text).expect("documented spec parses");
+    let (c, i) = polbrdf::plan::id_of_spec(&spec);
     assert_eq!(c, canonical, "canonical JSON of the documented spec");
     assert_eq!(i, id.trim());
-    assert_eq!(polbrdf::spec::canonical::SCHEMA_VERSION, "1");
-    assert_eq!(polbrdf::spec::canonical::SOLVER_VERSION, "3");
+    assert_eq!(polbrdf::plan::SCHEMA_VERSION, "1");
+    assert_eq!(polbrdf::plan::SOLVER_VERSION, "3");
 }

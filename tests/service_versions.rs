@@ -83,13 +83,13 @@ async fn results_of_an_older_solver_version_are_not_served() {
         .iter()
         .map(|(_, s)| {
             let mut out = String::new();
-            polbrdf::spec::canonical::write_canonical(s, &mut out);
+            polbrdf::material::canonical::write_canonical(s, &mut out);
             out
         })
         .collect();
     // The current id is the hash of the same text under the current version.
     for ((id, _), text) in canon.iter().zip(&canonical) {
-        assert_eq!(&polbrdf::spec::canonical::id_of_canonical(text), id);
+        assert_eq!(&polbrdf::plan::id_of_canonical(text), id);
     }
     old_data_dir(&data, &canonical[0], &canonical[1]).await;
     let (old_done, old_queued) = (v2_id(&canonical[0]), v2_id(&canonical[1]));

@@ -21,7 +21,7 @@ use polbrdf::solver::{
     Base, Layer, Problem, ReflectionFourier, Settings, Thickness, internal_field, phase,
     reflection, stream_fluxes,
 };
-use polbrdf::spec;
+use polbrdf::{material, plan};
 use std::f64::consts::PI;
 
 /// Record a failed check and go on (so that every worst value is measured and
@@ -880,12 +880,12 @@ fn energy_plane_albedo_and_flux_balance() {
 fn grazing_and_normal_directions() {
     let mu = [1e-4, 0.3, 0.8, 1.0];
     let (ig, i1) = (0, mu.len() - 1);
-    let silver = spec::parse(
+    let silver = material::parse(
         r#"{"layers":[{"optical_thickness":1,"scatterer":{"rayleigh":{"albedo":1}}}],
             "base":{"fresnel":{"material":"silver"}},"wavelengths_nm":[550]}"#,
     )
     .unwrap();
-    let silver_base = spec::problem(&silver, Some(550.0)).unwrap().base;
+    let silver_base = plan::problem(&silver, Some(550.0)).unwrap().base;
     let cases: Vec<(String, GreekCoefficients, Problem)> = vec![
         {
             let c = garcia_siewert();
@@ -1079,8 +1079,8 @@ fn strong_absorbers_and_deep_stacks() {
                 ),
                 r#""black""#,
             );
-            let s = spec::parse(&text).unwrap_or_else(|e| panic!("{e}"));
-            let p = spec::problem(&s, Some(550.0)).unwrap_or_else(|e| panic!("{e}"));
+            let s = material::parse(&text).unwrap_or_else(|e| panic!("{e}"));
+            let p = plan::problem(&s, Some(550.0)).unwrap_or_else(|e| panic!("{e}"));
             let label = format!(
                 "mie n={n} k={k} tau={t} (w={:.4}, L={})",
                 p.layers[0].albedo,
@@ -1104,8 +1104,8 @@ fn strong_absorbers_and_deep_stacks() {
                     &format!(r#"{{"optical_thickness":{t},"scatterer":{sc}}}"#),
                     base,
                 );
-                let s = spec::parse(&text).unwrap_or_else(|e| panic!("{e}"));
-                let mut p = spec::problem(&s, Some(550.0)).unwrap();
+                let s = material::parse(&text).unwrap_or_else(|e| panic!("{e}"));
+                let mut p = plan::problem(&s, Some(550.0)).unwrap();
                 // Thin start layer for the mirror's full path (see
                 // `grazing_and_normal_directions`).
                 p.settings.start_factor = 1e-3;
@@ -1286,12 +1286,12 @@ fn strong_absorbers_and_deep_stacks() {
 
 /// Silver base (seed table) at 550 nm.
 fn silver_like() -> Base {
-    let s = spec::parse(
+    let s = material::parse(
         r#"{"layers":[{"optical_thickness":1,"scatterer":{"rayleigh":{"albedo":1}}}],
             "base":{"fresnel":{"material":"silver"}},"wavelengths_nm":[550]}"#,
     )
     .unwrap();
-    spec::problem(&s, Some(550.0)).unwrap().base
+    plan::problem(&s, Some(550.0)).unwrap().base
 }
 
 /// Realizability where it is tightest: Rayleigh scattering polarizes fully at

@@ -7,7 +7,7 @@
 
 mod common;
 use polbrdf::solver::{self, ReflectionFourier, accuracy};
-use polbrdf::spec;
+use polbrdf::{material, plan};
 
 fn f11(r: &ReflectionFourier, dphi: &[f64]) -> Vec<f64> {
     let n = r.mu.len();
@@ -27,8 +27,8 @@ fn problem(name: &str) -> solver::Problem {
         "{}/docs/accuracy/specs/{name}.json",
         env!("CARGO_MANIFEST_DIR")
     );
-    let s = spec::parse(&std::fs::read_to_string(&path).unwrap()).unwrap();
-    spec::problem(&s, spec::wavelengths(&s)[0]).unwrap()
+    let s = material::parse(&std::fs::read_to_string(&path).unwrap()).unwrap();
+    plan::problem(&s, plan::wavelengths(&s)[0]).unwrap()
 }
 
 /// Max |Δf11| relative to max f11 of the reference.

@@ -282,7 +282,7 @@ mod tests {
     use crate::brdf::grid::PolarGrid;
 
     fn small_table() -> Table {
-        let spec = crate::spec::parse(
+        let spec = crate::material::parse(
             r#"{"layers": [{"optical_thickness": 0.5,
                  "scatterer": {"henyey_greenstein": {"albedo": 0.8, "g": 0.3}}}],
                 "base": {"lambertian": {"albedo": 0.4}}, "solver": {"streams": 4}}"#,

@@ -34,11 +34,11 @@
 use super::BrdfError;
 use super::grid::PolarGrid;
 use super::table::{Metadata, StoredCorrection, Table, WavelengthTable};
+use crate::digest::{self, hex};
 use crate::physics::RefractiveIndex;
 use crate::physics::expansion::GreekCoefficients;
 use crate::physics::stokes::Mueller;
 use crate::solver::truncation::CorrectionLayer;
-use sha2::{Digest, Sha256};
 
 /// The first 8 bytes of every table file.
 pub const MAGIC: [u8; 8] = *b"PBRDFTAB";
@@ -78,15 +78,10 @@ fn fmt_err(msg: impl Into<String>) -> BrdfError {
     BrdfError::Format(msg.into())
 }
 
-fn digest(header_start: &[u8], payload: &[u8]) -> [u8; 32] {
-    let mut h = Sha256::new();
-    h.update(header_start);
-    h.update(payload);
-    h.finalize().into()
-}
-
-fn hex(b: &[u8]) -> String {
-    b.iter().map(|x| format!("{x:02x}")).collect()
+/// The header checksum: SHA-256 of the header's first 24 bytes and the
+/// payload (docs/table-format.md).
+fn checksum(header_start: &[u8], payload: &[u8]) -> [u8; 32] {
+    digest::sha256_of(&[header_start, payload])
 }
 
 /// Serialise a table (docs/table-format.md).
@@ -150,7 +145,7 @@ pub fn to_bytes(table: &Table, dtype: DataType) -> Result<Vec<u8>, BrdfError> {
     out.extend_from_slice(&VERSION.to_le_bytes());
     out.extend_from_slice(&dtype.code().to_le_bytes());
     out.extend_from_slice(&(p.len() as u64).to_le_bytes());
-    let sha = digest(&out[..24], &p);
+    let sha = checksum(&out[..24], &p);
     out.extend_from_slice(&sha);
     out.extend_from_slice(&p);
     Ok(out)
@@ -383,7 +378,7 @@ fn check_header(b: &[u8]) -> Result<(DataType, &[u8]), BrdfError> {
         )));
     }
     let payload = &b[HEADER_LEN..];
-    let sha = digest(&b[..24], payload);
+    let sha = checksum(&b[..24], payload);
     if sha[..] != b[24..56] {
         return Err(fmt_err(format!(
             "checksum mismatch: the table is corrupted (SHA-256 in the header {}, of the content {})",
@@ -533,7 +528,7 @@ mod tests {
                  "scatterer": {{"rayleigh": {{"albedo": 0.9}}}}}}],
                 "base": {base}, "solver": {{"streams": 4}}}}"#
         );
-        let spec = crate::spec::parse(&text).unwrap();
+        let spec = crate::material::parse(&text).unwrap();
         Table::from_spec(&spec, PolarGrid::graded(7).unwrap()).unwrap()
     }
 
@@ -562,7 +557,7 @@ mod tests {
              "material": {"n": 1.5, "k": 0.001}, "radius_um": 1.0, "host_index": 1.0}}}],
              "base": {"fresnel": {"material": {"n": 0.14, "k": 4.1}}},
              "wavelengths_nm": [550], "solver": {"streams": 4}}"#;
-        let spec = crate::spec::parse(text).unwrap();
+        let spec = crate::material::parse(text).unwrap();
         let t = Table::from_spec(&spec, PolarGrid::graded(6).unwrap()).unwrap();
         assert!(t.wavelengths[0].correction.is_some());
         let back = from_bytes(&to_bytes(&t, DataType::F32).unwrap()).unwrap();
@@ -585,10 +580,11 @@ mod tests {
         let len = u64::from_le_bytes(b[16..24].try_into().unwrap()) as usize;
         assert_eq!(len, b.len() - HEADER_LEN);
         // The checksum is the SHA-256 of bytes 0..24 and the payload,
-        // computed here independently of `digest`.
+        // computed here with the sha2 crate, independently of `checksum`.
+        use sha2::Digest;
         let mut all = b[..24].to_vec();
         all.extend_from_slice(&b[HEADER_LEN..]);
-        assert_eq!(Sha256::digest(&all)[..], b[24..56]);
+        assert_eq!(sha2::Sha256::digest(&all)[..], b[24..56]);
     }
 
     fn message(b: &[u8]) -> String {

@@ -921,7 +921,7 @@ mod tests {
                 "base": {base}, {wl}
                 "solver": {{"streams": 4}}}}"#
         );
-        let spec = crate::spec::parse(&text).unwrap();
+        let spec = crate::material::parse(&text).unwrap();
         Table::from_spec(&spec, PolarGrid::graded(12).unwrap()).unwrap()
     }
 

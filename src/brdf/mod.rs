@@ -11,7 +11,7 @@
 //! * [`angles`]: graphics angles ↔ solver quantities (conventions §5).
 //! * [`mitsuba`]: Mitsuba 3 `measured_polarized` tensor files (docs/mitsuba.md).
 //!
-//! Layering: `cli` → `brdf` → `spec`, `solver` → `physics`. Everything but
+//! Layering: `cli` → `brdf` → `plan`, `material`, `solver` → `physics`. Everything but
 //! the file helpers in [`format`] and [`export`] is pure.
 
 pub mod angles;
@@ -26,8 +26,8 @@ pub use frames::rotate_to_frames;
 pub use grid::PolarGrid;
 pub use table::{Directions, Table, WavelengthTable, build};
 
+use crate::material::SpecError;
 use crate::solver::SolverError;
-use crate::spec::SpecError;
 
 /// Errors of table building, evaluation and files.
 #[derive(Debug, thiserror::Error)]

@@ -28,12 +28,12 @@
 use super::BrdfError;
 use super::angles::{self, Vec3, dphi_prop_rad, mu_of_theta_deg};
 use super::grid::{PolarGrid, STENCIL, Stencil};
+use crate::material::{self, Spec};
 use crate::physics::RefractiveIndex;
 use crate::physics::stokes::{Mueller, mul, rotation};
+use crate::plan::{self, Plan};
 use crate::solver::truncation::{CorrectionLayer, SingleScatterCorrection};
 use crate::solver::{self, Base};
-use crate::spec::plan::Plan;
-use crate::spec::{self, Spec};
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
 use std::time::Instant;
@@ -149,7 +149,7 @@ impl StoredCorrection {
             correction: SingleScatterCorrection {
                 layers,
                 polarized,
-                mirror: mirror.map(|(depth, n1, n2)| (spec::fresnel_mirror(n1, n2), depth)),
+                mirror: mirror.map(|(depth, n1, n2)| (plan::fresnel_mirror(n1, n2), depth)),
                 streams,
             },
             mirror_indices: mirror.map(|(_, n1, n2)| (n1, n2)),
@@ -219,7 +219,7 @@ pub struct Metadata {
     pub generator: String,
     /// The material spec the table was built from (docs/spec.md).
     pub spec: serde_json::Value,
-    /// The spec's id (SHA-256 of its canonical form, `spec::canonical::id`).
+    /// The spec's id (SHA-256 of its canonical form, `plan::id`).
     pub spec_hash: String,
     /// Solver settings.
     pub solver: SolverMeta,
@@ -278,7 +278,7 @@ pub struct BuildOptions<'a> {
 impl Default for BuildOptions<'_> {
     fn default() -> Self {
         Self {
-            max_streams: spec::MAX_STREAMS,
+            max_streams: material::MAX_STREAMS,
             on_progress: &|_, _, _| {},
         }
     }
@@ -332,13 +332,13 @@ pub fn build_wavelength(
     };
     let (mut refl, streams, error_estimate) = match plan.policy {
         // `needs.error_estimate: false`: one solve instead of three.
-        spec::StreamPolicy::Fixed(_) if !plan.needs.error_estimate => {
+        plan::StreamPolicy::Fixed(_) if !plan.needs.error_estimate => {
             let r = solver::reflection_observed(problem, &mu_user, &|done, bound| {
                 progress(done as f64 / bound.max(1) as f64)
             })?;
             (r, problem.settings.streams, None)
         }
-        spec::StreamPolicy::Fixed(_) => {
+        plan::StreamPolicy::Fixed(_) => {
             let e =
                 solver::accuracy::reflection_with_estimate_observed(problem, &mu_user, &progress)?;
             (
@@ -347,7 +347,7 @@ pub fn build_wavelength(
                 Some(estimate_meta(e.estimate)),
             )
         }
-        spec::StreamPolicy::Tolerance(t) => {
+        plan::StreamPolicy::Tolerance(t) => {
             let e = solver::accuracy::reflection_to_tolerance(
                 problem,
                 &mu_user,
@@ -717,8 +717,8 @@ impl Table {
             solver: SolverMeta {
                 streams: settings.streams,
                 tolerance: match plan.policy {
-                    spec::StreamPolicy::Tolerance(t) => Some(t),
-                    spec::StreamPolicy::Fixed(_) => None,
+                    plan::StreamPolicy::Tolerance(t) => Some(t),
+                    plan::StreamPolicy::Fixed(_) => None,
                 },
                 polarized: settings.polarized,
                 start_factor: settings.start_factor,
@@ -894,7 +894,7 @@ mod tests {
                  "scatterer": {{"rayleigh": {{"albedo": 0.95}}}}}}],
                 "base": {base}, "solver": {{"streams": 4}}}}"#
         );
-        let spec = crate::spec::parse(&text).unwrap();
+        let spec = crate::material::parse(&text).unwrap();
         Table::from_spec(&spec, PolarGrid::graded(8).unwrap()).unwrap()
     }
 
@@ -924,13 +924,13 @@ mod tests {
                      "material": {{"n": 1.5, "k": 0.001}}, "radius_um": 1.0, "host_index": 1.0}}}}}}],
                     "base": {base}, "wavelengths_nm": [550], "solver": {{"streams": 4}}}}"#
             );
-            let spec = crate::spec::parse(&text).unwrap();
+            let spec = crate::material::parse(&text).unwrap();
             let grid = PolarGrid::graded(8).unwrap();
             let t = Table::from_spec(&spec, grid.clone()).unwrap();
             let wt = &t.wavelengths[0];
             let stored = wt.correction.as_ref().expect("truncated solve");
             assert_eq!(stored.mirror_indices.is_some(), base != r#""black""#);
-            let p = spec::problem(&spec, Some(550.0)).unwrap();
+            let p = plan::problem(&spec, Some(550.0)).unwrap();
             let r = solver::reflection(&p, &grid.mu).unwrap();
             let (mut worst, mut scale, mut share) = (0.0f64, 0.0f64, 0.0f64);
             for o in 0..grid.len() {
@@ -987,7 +987,7 @@ mod tests {
     /// with fixed streams records its estimate too (from `N/2` and `3N/4`).
     #[test]
     fn tolerance_specs_record_streams_and_estimate() {
-        let spec = crate::spec::parse(
+        let spec = crate::material::parse(
             r#"{"layers": [{"optical_thickness": 0.4,
                  "scatterer": {"rayleigh": {"albedo": 0.95}}}],
                 "solver": {"tolerance": 1e-3}}"#,
@@ -998,7 +998,7 @@ mod tests {
         let w = &t.metadata.wavelengths[0];
         let e = w.error_estimate.as_ref().expect("estimate");
         assert_eq!(w.streams, e.streams[2]);
-        assert!(e.max_err_f11 <= 1e-3 || w.streams * 2 > crate::spec::MAX_STREAMS);
+        assert!(e.max_err_f11 <= 1e-3 || w.streams * 2 > crate::material::MAX_STREAMS);
         let fixed = table(r#""black""#);
         assert_eq!(fixed.metadata.wavelengths[0].streams, 4);
         let e = fixed.metadata.wavelengths[0]

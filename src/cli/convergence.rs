@@ -8,7 +8,7 @@
 use crate::plot::draw;
 use crate::plot::figure::{Axis, Dash, Figure, Legend, LinePanel, Panel, Series};
 use crate::solver::{self, Problem, ReflectionFourier};
-use crate::spec;
+use crate::{material, plan};
 use clap::Args;
 use serde_json::{Value, json};
 use std::time::Instant;
@@ -117,9 +117,9 @@ fn row(
 
 pub fn run(a: &ConvergenceArgs) -> Result<Value, String> {
     let text = std::fs::read_to_string(&a.spec).map_err(|e| format!("{}: {e}", a.spec))?;
-    let spec = spec::parse(&text).map_err(|e| format!("{}: {e}", a.spec))?;
-    let wl = spec::wavelengths(&spec)[0];
-    let problem = spec::problem(&spec, wl).map_err(|e| format!("{}: {e}", a.spec))?;
+    let spec = material::parse(&text).map_err(|e| format!("{}: {e}", a.spec))?;
+    let wl = plan::wavelengths(&spec)[0];
+    let problem = plan::problem(&spec, wl).map_err(|e| format!("{}: {e}", a.spec))?;
     let (mu, dphi) = probe_grid();
     let max_streams = *a.streams.iter().max().ok_or("--streams is empty")?;
     if a.streams.contains(&0) {

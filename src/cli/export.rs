@@ -7,11 +7,10 @@ use crate::brdf::format::{self, DataType};
 use crate::brdf::mitsuba::{self, BelowHorizon, MitsubaOptions};
 use crate::brdf::table::BuildOptions;
 use crate::brdf::{Directions, Table};
-use crate::spec;
+use crate::material;
 use clap::{Args, ValueEnum};
 use serde::Deserialize;
 use serde_json::{Value, json};
-use sha2::{Digest, Sha256};
 
 /// Export formats.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -106,7 +105,7 @@ fn write(path: &str, bytes: &[u8]) -> Result<(), String> {
 
 fn read_points(path: &str) -> Result<Vec<Directions>, String> {
     let text = std::fs::read_to_string(path).map_err(|e| format!("{path}: {e}"))?;
-    let p: PointsFile = spec::json::from_str(&text).map_err(|e| format!("{path}: {e}"))?;
+    let p: PointsFile = material::from_json_str(&text).map_err(|e| format!("{path}: {e}"))?;
     for (i, d) in p.points.iter().enumerate() {
         d.validate()
             .map_err(|e| format!("{path}: points[{i}].{e}"))?;
@@ -178,7 +177,7 @@ fn npy_summary(
         "file": output, "format": "npy", "shape": d.shape(),
         "dtype": match ty { NpyType::F32 => "<f4", NpyType::F64 => "<f8" },
         "bytes": bytes.len(),
-        "sha256_of_file": hex_sha256(bytes),
+        "sha256_of_file": crate::digest::sha256_hex(bytes),
         "axes": {
             "wavelength_nm": if wavelengths.is_empty() {
                 json!({"count": d.wavelength_nm.len(), "values": "none: a wavelength-free table"})
@@ -192,13 +191,6 @@ fn npy_summary(
         },
         "frames": export::FRAMES, "units": "1/sr",
     })
-}
-
-fn hex_sha256(bytes: &[u8]) -> String {
-    Sha256::digest(bytes)
-        .iter()
-        .map(|b| format!("{b:02x}"))
-        .collect()
 }
 
 /// The CLI's way to a finer grid, for [`mitsuba::export_warnings`].
@@ -256,7 +248,7 @@ fn export_mitsuba(a: &ExportArgs, table: &Table) -> Result<Value, String> {
 /// Returns the file's summary and the table (its metadata has the
 /// per-wavelength streams, orders, timings and error estimates).
 pub fn write_table(
-    spec: &spec::Spec,
+    spec: &material::Spec,
     spec_path: &str,
     out: &str,
     options: &BuildOptions,
@@ -267,7 +259,7 @@ pub fn write_table(
     let summary = json!({
         "file": out,
         "bytes": bytes.len(),
-        "sha256_of_file": hex_sha256(&bytes),
+        "sha256_of_file": crate::digest::sha256_hex(&bytes),
         "polar_nodes": table.grid.len(),
         "wavelengths": table.metadata.wavelengths,
     });

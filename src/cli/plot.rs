@@ -13,6 +13,8 @@
 //! return.
 
 use crate::brdf::{PolarGrid, grid::DEFAULT_NODES};
+use crate::material::{self, Spec};
+use crate::plan;
 use crate::plot::csv::Csv;
 use crate::plot::curves;
 use crate::plot::draw;
@@ -22,7 +24,6 @@ use crate::plot::figures::{
     ScalarErrorOptions, SolveOptions, Source,
 };
 use crate::solver::Thickness;
-use crate::spec::{self, Spec};
 use clap::{Args, Subcommand};
 use serde::Serialize;
 use serde_json::{Value, json};
@@ -424,15 +425,15 @@ fn size(out: &OutputArgs) -> Result<Option<(u32, u32)>, String> {
 // Files.
 
 /// Read a spec; unless `--streams` replaces its streams, they are held to
-/// `--max-streams` and the spec must pass `spec::check_solvable` there.
+/// `--max-streams` and the spec must pass `plan::check_solvable` there.
 fn load_spec(path: &str, solve: &SolveArgs) -> Result<Spec, String> {
     let text = std::fs::read_to_string(path).map_err(|e| format!("{path}: {e}"))?;
-    let spec = spec::parse(&text).map_err(|e| format!("{path}: {e}"))?;
+    let spec = material::parse(&text).map_err(|e| format!("{path}: {e}"))?;
     if solve.streams.is_none() {
         super::solve::check_stream_cap(&spec, solve.max_streams)
             .map_err(|e| format!("{path}: {e}"))?;
         // What the solve would refuse, refused before solving (as `solve`).
-        spec::check_solvable(&spec, solve.max_streams).map_err(|e| format!("{path}: {e}"))?;
+        plan::check_solvable(&spec, solve.max_streams).map_err(|e| format!("{path}: {e}"))?;
     }
     Ok(spec)
 }

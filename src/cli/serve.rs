@@ -137,7 +137,12 @@ pub fn config_from(
     if let Some(b) = n(args.max_body_bytes, "max-body-bytes", 1, 1 << 30)? {
         c.max_body_bytes = b;
     }
-    if let Some(s) = n(args.max_streams, "max-streams", 1, crate::spec::MAX_STREAMS)? {
+    if let Some(s) = n(
+        args.max_streams,
+        "max-streams",
+        1,
+        crate::material::MAX_STREAMS,
+    )? {
         c.limits.max_streams = s;
     }
     if let Some(l) = n(args.max_layers, "max-layers", 1, 1 << 20)? {

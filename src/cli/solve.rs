@@ -31,8 +31,9 @@
 
 use super::progress::Progress;
 use crate::brdf::angles::{MU_FLOOR, dphi_prop_rad, mu_of_theta_deg};
+use crate::material::{self, Spec, SpecError};
+use crate::plan;
 use crate::solver::{self, Base, fourier_sum};
-use crate::spec::{self, Spec, SpecError};
 use clap::Args;
 use serde::{Deserialize, Serialize};
 use serde_json::{Value, json};
@@ -66,9 +67,9 @@ pub fn default_max_streams() -> usize {
     crate::http::config::Limits::default().max_streams
 }
 
-/// `--max-streams` values: 1 to the spec's hard limit [`spec::MAX_STREAMS`].
+/// `--max-streams` values: 1 to the spec's hard limit [`material::MAX_STREAMS`].
 pub fn max_streams_parser() -> clap::builder::RangedU64ValueParser<usize> {
-    clap::builder::RangedU64ValueParser::<usize>::new().range(1..=spec::MAX_STREAMS as u64)
+    clap::builder::RangedU64ValueParser::<usize>::new().range(1..=material::MAX_STREAMS as u64)
 }
 
 /// Refuse an explicit `solver.streams` over `max_streams` (`--max-streams`),
@@ -141,7 +142,7 @@ impl MuSet {
 
 fn read_json<T: for<'de> Deserialize<'de>>(path: &str) -> Result<T, String> {
     let text = std::fs::read_to_string(path).map_err(|e| format!("{path}: {e}"))?;
-    spec::json::from_str(&text).map_err(|e| format!("{path}: {e}"))
+    material::from_json_str(&text).map_err(|e| format!("{path}: {e}"))
 }
 
 fn check_angle(what: &str, v: f64, lo: f64, hi: f64) -> Result<(), String> {
@@ -202,15 +203,15 @@ pub fn run(a: &SolveArgs) -> Result<Value, String> {
     let started = Instant::now();
     let spec_path = a.spec.as_str();
     let text = std::fs::read_to_string(spec_path).map_err(|e| format!("{spec_path}: {e}"))?;
-    let spec = spec::parse(&text).map_err(|e| format!("{spec_path}: {e}"))?;
+    let spec = material::parse(&text).map_err(|e| format!("{spec_path}: {e}"))?;
     // Refuse before solving what the service or the solver would refuse
     // (docs/spec.md).
     check_stream_cap(&spec, a.max_streams).map_err(|e| format!("{spec_path}: {e}"))?;
-    spec::check_solvable(&spec, a.max_streams).map_err(|e| format!("{spec_path}: {e}"))?;
+    plan::check_solvable(&spec, a.max_streams).map_err(|e| format!("{spec_path}: {e}"))?;
     let points = a.points.as_deref().map(read_points).transpose()?;
     let field = a.field.as_deref().map(read_field).transpose()?;
 
-    let wavelengths = spec::wavelengths(&spec);
+    let wavelengths = plan::wavelengths(&spec);
     let direct = points.is_some() || field.is_some();
     let stages = wavelengths.len() * (usize::from(direct) + usize::from(a.table.is_some()));
     let progress = Progress::new(stages);
@@ -300,7 +301,7 @@ fn solve_direct(
     on_progress: &(dyn Fn(f64) + Sync),
 ) -> Result<serde_json::Map<String, Value>, String> {
     let start = Instant::now();
-    let mut problem = spec::problem(spec, wl).map_err(|e| format!("{spec_path}: {e}"))?;
+    let mut problem = plan::problem(spec, wl).map_err(|e| format!("{spec_path}: {e}"))?;
     let mut out = serde_json::Map::new();
     let mut orders = 0;
     let mut estimate = None;
@@ -316,15 +317,15 @@ fn solve_direct(
         let mut pts = Vec::new();
         let mut spec_terms = Vec::new();
         if !set.mu.is_empty() {
-            let solved = match spec::stream_policy(spec) {
-                spec::StreamPolicy::Fixed(_) => {
+            let solved = match plan::stream_policy(spec) {
+                plan::StreamPolicy::Fixed(_) => {
                     solver::accuracy::reflection_with_estimate_observed(
                         &problem,
                         &set.mu,
                         on_progress,
                     )
                 }
-                spec::StreamPolicy::Tolerance(t) => solver::accuracy::reflection_to_tolerance(
+                plan::StreamPolicy::Tolerance(t) => solver::accuracy::reflection_to_tolerance(
                     &problem,
                     &set.mu,
                     t,
@@ -487,7 +488,7 @@ mod tests {
     use super::*;
 
     fn spec_with_streams(n: usize) -> Spec {
-        spec::parse(&format!(
+        material::parse(&format!(
             r#"{{"layers":[{{"optical_thickness":1,"scatterer":{{"rayleigh":{{"albedo":0.9}}}}}}],"solver":{{"streams":{n}}}}}"#
         ))
         .unwrap()
@@ -502,7 +503,7 @@ mod tests {
         assert!(check_stream_cap(&spec_with_streams(256), 256).is_ok());
         // No explicit streams: nothing to cap here (a tolerance is capped by
         // check_solvable and the solver).
-        let tol = spec::parse(
+        let tol = material::parse(
             r#"{"layers":[{"optical_thickness":1,"scatterer":{"rayleigh":{"albedo":0.9}}}],"solver":{"tolerance":1e-3}}"#,
         )
         .unwrap();
@@ -515,7 +516,7 @@ mod tests {
             default_max_streams(),
             crate::http::config::Limits::default().max_streams
         );
-        assert!(default_max_streams() <= spec::MAX_STREAMS);
+        assert!(default_max_streams() <= material::MAX_STREAMS);
     }
 
     #[test]

@@ -2,8 +2,11 @@
 
 use super::AppState;
 use super::error::ApiError;
-use crate::jobs::{Problem, Submission};
-use crate::spec::{self, ScattererSpec, Spec, canonical};
+use super::problem::Problem;
+use super::results::{IMMUTABLE, require_done, row_of, stored_bytes, table_of};
+use crate::jobs::{FailureRecord, Submission};
+use crate::material::{self, ScattererSpec, Spec};
+use crate::plan;
 use crate::storage::{JobRow, Status, rfc3339};
 use axum::Json;
 use axum::body::Bytes;
@@ -12,7 +15,6 @@ use axum::extract::{Path, Query, State};
 use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
 use serde::{Deserialize, Serialize};
-use sha2::Digest;
 use utoipa::{IntoParams, ToSchema};
 
 /// A material spec (docs/spec.md).
@@ -130,10 +132,7 @@ impl BrdfResource {
             error_estimate: row.error_estimate,
             wall_time_ms: row.wall_time_ms.clone(),
             wavelengths: row.wavelengths,
-            error: row
-                .error
-                .as_deref()
-                .and_then(|e| serde_json::from_str(e).ok()),
+            error: FailureRecord::of_row(row).map(Problem::from),
             result,
             created_at: rfc3339(row.created_at),
             updated_at: rfc3339(row.updated_at),
@@ -192,7 +191,7 @@ pub fn check_limits(spec: &Spec, limits: &super::config::Limits) -> Result<(), A
             ),
         ));
     }
-    let x = crate::spec::max_size_parameter(spec);
+    let x = crate::plan::max_size_parameter(spec);
     if x > limits.max_size_parameter {
         let i = spec
             .layers
@@ -281,16 +280,16 @@ pub async fn create_brdf(
     }
     let body = body.map_err(|e| ApiError::from_body(e, state.0.config.max_body_bytes))?;
     let text = std::str::from_utf8(&body).map_err(|e| {
-        ApiError::InvalidSpec(spec::SpecError {
+        ApiError::InvalidSpec(material::SpecError {
             path: "$".into(),
             message: format!("the body is not UTF-8: {e}"),
         })
     })?;
-    let spec = spec::parse(text).map_err(ApiError::InvalidSpec)?;
+    let spec = material::parse(text).map_err(ApiError::InvalidSpec)?;
     check_limits(&spec, &state.0.config.limits)?;
-    spec::check_solvable(&spec, state.0.config.limits.max_streams)
+    plan::check_solvable(&spec, state.0.config.limits.max_streams)
         .map_err(ApiError::InvalidSpec)?;
-    let (canonical_json, id) = canonical::id(&spec);
+    let (canonical_json, id) = plan::id_of_spec(&spec);
     tracing::debug!(%id, "submission");
     match state.0.jobs.submit(&spec, &canonical_json, &id).await? {
         Submission::Cached(row) => {
@@ -363,7 +362,7 @@ fn cursor_of(row: &JobRow) -> String {
 
 fn parse_cursor(c: &str) -> Option<(i64, &str)> {
     let (at, id) = c.split_once('-')?;
-    Some((at.parse().ok()?, id)).filter(|(_, id)| canonical::is_id(id))
+    Some((at.parse().ok()?, id)).filter(|(_, id)| plan::is_id(id))
 }
 
 /// The cache: every job of the running version, newest first.
@@ -444,51 +443,6 @@ pub async fn list_brdfs(
     Ok(res)
 }
 
-/// A result is served only from a done row: queued/running → not ready
-/// (409 with Retry-After), failed → the job's typed problem.
-pub(super) fn require_done(row: &JobRow, id: &str) -> Result<(), ApiError> {
-    match row.status {
-        Status::Queued | Status::Running => Err(ApiError::NotReady {
-            id: id.to_string(),
-            status: row.status.as_str(),
-        }),
-        Status::Failed => {
-            let problem = row
-                .error
-                .as_deref()
-                .and_then(|e| serde_json::from_str(e).ok())
-                .unwrap_or_else(|| Problem::new("job-failed", "BRDF job failed", 409, "unknown"));
-            Err(ApiError::JobFailed {
-                id: id.to_string(),
-                problem: Box::new(problem),
-            })
-        }
-        Status::Done => Ok(()),
-    }
-}
-
-pub(super) async fn row_of(state: &AppState, id: &str) -> Result<JobRow, ApiError> {
-    if !canonical::is_id(id) {
-        return Err(ApiError::NotFound(id.to_string()));
-    }
-    let row = state
-        .0
-        .jobs
-        .index()
-        .get(id)
-        .await?
-        .ok_or_else(|| ApiError::NotFound(id.to_string()))?;
-    if !row.is_current() {
-        return Err(ApiError::Retired {
-            id: row.id,
-            version: row.result_version,
-            current: canonical::result_version(),
-            current_id: canonical::id_of_canonical(&row.spec),
-        });
-    }
-    Ok(row)
-}
-
 /// A BRDF job: state, progress, canonical spec, timings, error estimate,
 /// the typed error of a failed job, and the result digest once done.
 #[utoipa::path(
@@ -532,9 +486,6 @@ fn none_match(headers: &HeaderMap, digest: &str) -> bool {
 /// Media type of `format=mitsuba` (a Mitsuba 3 tensor file has no
 /// registered type).
 pub const MITSUBA_MEDIA_TYPE: &str = "application/octet-stream";
-
-/// Immutable results: cacheable by any HTTP cache for a year.
-pub const IMMUTABLE: &str = "public, max-age=31536000, immutable";
 
 /// Formats of `GET …/table`.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize, ToSchema)]
@@ -868,7 +819,7 @@ pub async fn get_table(
     let q = table_query(pairs)?;
     let format = q.format.unwrap_or_default();
     if format != TableFormat::Binary {
-        let (row, table) = super::eval::table_of(&state, &id).await?;
+        let (row, table) = table_of(&state, &id).await?;
         let key = format!(
             "{}?{format:?}&{:?}&{:?}&{:?}&{:?}",
             row.digest.as_deref().unwrap_or(""),
@@ -883,10 +834,7 @@ pub async fn get_table(
                 let max = state.0.config.limits.max_dense_values;
                 let export = tokio::task::spawn_blocking(move || {
                     dense_bytes(&table, &q, format, max).map(|(bytes, media, extra)| {
-                        let digest: String = sha2::Sha256::digest(&bytes)
-                            .iter()
-                            .map(|b| format!("{b:02x}"))
-                            .collect();
+                        let digest = crate::digest::sha256_hex(&bytes);
                         (std::sync::Arc::new(bytes), media, digest, extra)
                     })
                 })
@@ -934,12 +882,7 @@ pub async fn get_table(
         h.insert(header::CACHE_CONTROL, HeaderValue::from_static(IMMUTABLE));
         return Ok(res);
     }
-    let Some(bytes) = state.0.jobs.result_bytes(&row).await? else {
-        return Err(ApiError::NotReady {
-            id,
-            status: "being solved again (the stored result was missing or corrupt)",
-        });
-    };
+    let bytes = stored_bytes(&state, &row).await?;
     let media = row
         .media_type
         .as_deref()

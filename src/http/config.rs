@@ -61,7 +61,7 @@ pub struct Limits {
     pub max_wavelengths: usize,
     /// Length of each expansion series of an `expansion` scatterer.
     pub max_expansion_terms: usize,
-    /// Largest Mie size parameter `2π r n_host/λ` (`spec::max_size_parameter`;
+    /// Largest Mie size parameter `2π r n_host/λ` (`plan::max_size_parameter`;
     /// the Mie series and expansion grow with it).
     pub max_size_parameter: f64,
     /// Values (`W·Ti·To·P·16`) of one dense export (`GET …/table?format=npy|json`).

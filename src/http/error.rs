@@ -1,9 +1,11 @@
 //! The one error enum of the HTTP boundary and its mapping to status codes
-//! and RFC 9457 problem+json bodies. Clients get the problem; the log gets
-//! the details of internal errors.
+//! and RFC 9457 problem+json bodies, and the problem+json of a failed job's
+//! stored record. Clients get the problem; the log gets the details of
+//! internal errors.
 
-use crate::jobs::{JobError, Problem, problem};
-use crate::spec::SpecError;
+use super::problem::{self, Problem};
+use crate::jobs::{FailureRecord, JobError};
+use crate::material::SpecError;
 use axum::http::{HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
 
@@ -259,6 +261,22 @@ impl IntoResponse for ApiError {
     }
 }
 
+/// A failed job's stored record as problem+json: field for field, so a
+/// row renders the same body whichever version of the service wrote it.
+impl From<FailureRecord> for Problem {
+    fn from(r: FailureRecord) -> Self {
+        Problem {
+            type_: r.type_,
+            title: r.title,
+            status: r.status,
+            detail: r.detail,
+            path: r.path,
+            wavelength_nm: r.wavelength_nm,
+            retryable: r.retryable,
+        }
+    }
+}
+
 impl ApiError {
     /// A body that could not be read: over `--max-body-bytes` is 413, any
     /// other failure 400.
@@ -269,6 +287,26 @@ impl ApiError {
                 ApiError::PayloadTooLarge { limit }
             }
             other => ApiError::BadBody(other.body_text()),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Stored records (as rows of every version hold them) render as the
+    /// same JSON object.
+    #[test]
+    fn a_stored_record_renders_as_itself() {
+        for stored in [
+            r#"{"type":"/problems/invalid-spec","title":"Invalid spec","status":422,"detail":"m = 1","path":"layers[0].scatterer.mie","wavelength_nm":550.0,"retryable":false}"#,
+            r#"{"type":"/problems/job-abandoned","title":"Job abandoned","status":500,"detail":"started 3 times","retryable":true}"#,
+            r#"{"type":"/problems/invalid-spec","title":"Invalid spec","status":422,"detail":"x","path":"layers"}"#,
+        ] {
+            let record: FailureRecord = serde_json::from_str(stored).unwrap();
+            let problem = Problem::from(record);
+            assert_eq!(serde_json::to_string(&problem).unwrap(), stored);
         }
     }
 }

@@ -2,13 +2,11 @@
 //! pair by query string (`GET`), many by body (`POST`).
 
 use super::AppState;
-use super::brdfs::IMMUTABLE;
 use super::error::ApiError;
+use super::problem::Problem;
+use super::results::{IMMUTABLE, table_of};
 use crate::brdf::export::FRAMES;
-use crate::brdf::{BrdfError, Directions, Table, format};
-use crate::jobs::Problem;
-use crate::spec::canonical;
-use crate::storage::JobRow;
+use crate::brdf::{BrdfError, Directions, Table};
 use axum::Json;
 use axum::body::Bytes;
 use axum::extract::rejection::{BytesRejection, QueryRejection};
@@ -16,58 +14,7 @@ use axum::extract::{Path, Query, State};
 use axum::http::{HeaderValue, header};
 use axum::response::{IntoResponse, Response};
 use serde::{Deserialize, Serialize};
-use std::collections::VecDeque;
-use std::sync::{Arc, Mutex};
 use utoipa::{IntoParams, ToSchema};
-
-/// Parsed tables kept in memory, by digest (most recently used last), and
-/// the done rows that point at them, by id: a done result never changes
-/// (the id is the spec's hash and the solve is deterministic), so a hot
-/// eval path needs no database round trip.
-#[derive(Debug, Default)]
-pub struct TableCache {
-    tables: Mutex<VecDeque<(String, Arc<Table>)>>,
-    done: Mutex<VecDeque<(String, JobRow, Arc<Table>)>>,
-}
-
-/// Tables kept by [`TableCache`].
-const CACHED_TABLES: usize = 8;
-
-impl TableCache {
-    fn get(&self, digest: &str) -> Option<Arc<Table>> {
-        let mut q = self.tables.lock().expect("table cache");
-        let k = q.iter().position(|(d, _)| d == digest)?;
-        let e = q.remove(k).expect("entry");
-        let t = e.1.clone();
-        q.push_back(e);
-        Some(t)
-    }
-
-    fn get_done(&self, id: &str) -> Option<(JobRow, Arc<Table>)> {
-        let q = self.done.lock().expect("done cache");
-        q.iter()
-            .find(|(i, _, _)| i == id)
-            .map(|(_, row, t)| (row.clone(), t.clone()))
-    }
-
-    fn put_done(&self, id: &str, row: JobRow, table: Arc<Table>) {
-        let mut q = self.done.lock().expect("done cache");
-        q.retain(|(i, _, _)| i != id);
-        q.push_back((id.to_string(), row, table));
-        while q.len() > CACHED_TABLES {
-            q.pop_front();
-        }
-    }
-
-    fn put(&self, digest: String, table: Arc<Table>) {
-        let mut q = self.tables.lock().expect("table cache");
-        q.retain(|(d, _)| *d != digest);
-        q.push_back((digest, table));
-        while q.len() > CACHED_TABLES {
-            q.pop_front();
-        }
-    }
-}
 
 /// One direction pair (graphics convention, degrees; conventions §5) and
 /// an optional wavelength.
@@ -144,38 +91,6 @@ pub struct EvalResponse {
     pub frames: String,
     /// One entry per direction pair.
     pub points: Vec<EvalValue>,
-}
-
-/// The parsed table of a done row (verified bytes, cached by digest).
-pub(super) async fn table_of(state: &AppState, id: &str) -> Result<(JobRow, Arc<Table>), ApiError> {
-    if !canonical::is_id(id) {
-        return Err(ApiError::NotFound(id.to_string()));
-    }
-    let app = &state.0;
-    if let Some(hit) = app.tables.get_done(id) {
-        return Ok(hit);
-    }
-    let row = super::brdfs::row_of(state, id).await?;
-    super::brdfs::require_done(&row, id)?;
-    let digest = row.digest.clone().unwrap_or_default();
-    if let Some(t) = app.tables.get(&digest) {
-        app.tables.put_done(id, row.clone(), t.clone());
-        return Ok((row, t));
-    }
-    let Some(bytes) = app.jobs.result_bytes(&row).await? else {
-        return Err(ApiError::NotReady {
-            id: id.to_string(),
-            status: "being solved again (the stored result was missing or corrupt)",
-        });
-    };
-    let table = tokio::task::spawn_blocking(move || format::from_bytes(&bytes))
-        .await
-        .map_err(|e| ApiError::Internal(e.to_string()))?
-        .map_err(|e| ApiError::Internal(format!("stored table {digest}: {e}")))?;
-    let table = Arc::new(table);
-    app.tables.put(digest, table.clone());
-    app.tables.put_done(id, row.clone(), table.clone());
-    Ok((row, table))
 }
 
 /// A query error of `brdf` as a 422 naming the field: the angle the
@@ -309,7 +224,7 @@ pub async fn post_eval(
 ) -> Result<Response, ApiError> {
     let body = body.map_err(|e| ApiError::from_body(e, state.0.config.max_body_bytes))?;
     let req: EvalRequest =
-        crate::spec::json::from_slice(&body).map_err(|e| ApiError::InvalidQuery {
+        crate::material::from_json_slice(&body).map_err(|e| ApiError::InvalidQuery {
             path: e.path,
             message: e.message,
         })?;

@@ -6,7 +6,11 @@
 //! * Handlers share [`AppState`]`(Arc<`[`App`]`>)`: the configuration, the
 //!   job queue and the metrics.
 //! * Every error is an [`error::ApiError`], mapped in one place to a status
-//!   and an RFC 9457 problem+json body.
+//!   and an RFC 9457 problem+json body ([`problem::Problem`]); so is the
+//!   stored failure of a job.
+//! * The routes that read results ([`brdfs`], [`eval`]) share [`results`]:
+//!   the row of an id (its version and status checked), its verified bytes
+//!   and its parsed table.
 //! * [`serve`] opens the storage, starts the workers, binds, and shuts down
 //!   gracefully when its `shutdown` future resolves.
 
@@ -15,6 +19,8 @@ pub mod config;
 pub mod error;
 pub mod eval;
 pub mod ops;
+pub mod problem;
+pub mod results;
 
 pub use config::{Config, Limits, LogFormat};
 pub use error::ApiError;
@@ -42,7 +48,7 @@ pub struct App {
     /// The job queue (with the index, the blobs and the metrics).
     pub jobs: Arc<Jobs>,
     /// Parsed tables of recent evaluations.
-    pub tables: eval::TableCache,
+    pub tables: results::TableCache,
     /// Recent derived exports (`GET …/table?format=…`).
     pub exports: brdfs::ExportCache,
 }
@@ -61,7 +67,7 @@ pub struct AppState(pub Arc<App>);
         license(name = "MIT OR Apache-2.0")
     ),
     modifiers(&BearerAuth),
-    components(schemas(crate::jobs::Problem, brdfs::TableFormat, brdfs::DenseType, brdfs::TableBytes)),
+    components(schemas(problem::Problem, brdfs::TableFormat, brdfs::DenseType, brdfs::TableBytes)),
     tags(
         (name = "brdfs", description = "Submit specs, follow jobs, fetch results"),
         (name = "operations", description = "Health, readiness, metrics")
@@ -299,7 +305,7 @@ pub async fn serve(
     let state = AppState(Arc::new(App {
         config,
         jobs: jobs.clone(),
-        tables: eval::TableCache::default(),
+        tables: results::TableCache::default(),
         exports: brdfs::ExportCache::default(),
     }));
     let stopping = jobs.clone();

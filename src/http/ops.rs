@@ -48,7 +48,7 @@ pub async fn readyz(State(state): State<AppState>) -> Response {
     tag = "operations",
     responses(
         (status = 200, description = "Metrics", body = String, content_type = "text/plain; version=0.0.4"),
-        (status = 401, description = "Token required for reads (--token-reads)", body = crate::jobs::Problem, content_type = "application/problem+json"),
+        (status = 401, description = "Token required for reads (--token-reads)", body = crate::http::problem::Problem, content_type = "application/problem+json"),
     ),
     security((), ("bearer" = []))
 )]

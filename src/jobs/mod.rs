@@ -22,15 +22,17 @@
 //!   queued in the index; running jobs get a grace period to finish, and are
 //!   re-queued in the index if they do not.
 
+pub mod failure;
 pub mod metrics;
-pub mod problem;
 pub mod result;
 
+pub use failure::{FailureRecord, JobFailure};
 pub use metrics::{Gauges, Metrics};
-pub use problem::Problem;
 
-use crate::spec::{self, Spec};
+use crate::material::{self, Spec};
+use crate::plan;
 use crate::storage::{BlobStore, Index, JobRow, Status, StorageError, now_ms};
+use result::SolveFailure;
 use std::collections::HashMap;
 use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::sync::atomic::{AtomicBool, AtomicU8, AtomicUsize, Ordering};
@@ -139,7 +141,7 @@ enum Outcome {
         error_estimate: Option<f64>,
         seconds: f64,
     },
-    Failed(Problem),
+    Failed(SolveFailure),
     Internal(String),
     Cancelled,
 }
@@ -202,26 +204,17 @@ impl Jobs {
         for row in self.index.unfinished().await? {
             let now = now_ms();
             if row.attempts >= self.config.max_attempts {
-                let mut p = Problem::new(
-                    "job-abandoned",
-                    "Job abandoned",
-                    500,
-                    format!(
-                        "the solve was started {} times without finishing (the service stopped during each)",
-                        row.attempts
-                    ),
-                );
-                p.retryable = Some(true);
                 tracing::error!(id = %row.id, attempts = row.attempts, "job abandoned");
-                self.index.fail(&row.id, &to_json(&p), now).await?;
+                let failure = JobFailure::Abandoned {
+                    attempts: row.attempts,
+                };
+                self.fail(&row.id, &failure, now).await?;
                 continue;
             }
-            let spec = match spec::parse(&row.spec) {
+            let spec = match material::parse(&row.spec) {
                 Ok(s) => s,
                 Err(e) => {
-                    let p = Problem::new("invalid-spec", "Invalid spec", 422, e.message.clone())
-                        .at(e.path.clone());
-                    self.index.fail(&row.id, &to_json(&p), now).await?;
+                    self.fail(&row.id, &JobFailure::InvalidSpec(e), now).await?;
                     continue;
                 }
             };
@@ -275,7 +268,7 @@ impl Jobs {
     }
 
     /// Submit a parsed spec with its canonical JSON and id
-    /// ([`crate::spec::canonical::id`]).
+    /// ([`crate::plan::id_of_spec`]).
     pub async fn submit(
         self: &Arc<Self>,
         spec: &Spec,
@@ -385,7 +378,7 @@ impl Jobs {
             self.metrics.rejected.fetch_add(1, Ordering::Relaxed);
             return Err(JobError::QueueFull { capacity });
         }
-        let wavelengths = spec::wavelengths(spec).len() as i64;
+        let wavelengths = plan::wavelengths(spec).len() as i64;
         if let Err(e) = self
             .index
             .enqueue(id, canonical, wavelengths, now_ms())
@@ -425,7 +418,7 @@ impl Jobs {
         };
         if bytes.is_none() {
             tracing::warn!(id = %row.id, "result blob missing, corrupt or stale; solving again");
-            if let Ok(spec) = spec::parse(&row.spec) {
+            if let Ok(spec) = material::parse(&row.spec) {
                 // Not a cache hit: `decide` sees the blob gone and enqueues.
                 match self.submit(&spec, &row.spec, &row.id).await {
                     Ok(_) | Err(JobError::QueueFull { .. }) | Err(JobError::ShuttingDown) => {}
@@ -482,26 +475,7 @@ impl Jobs {
                     },
                     Err(e) => Outcome::Internal(format!("storing the result: {e}")),
                 },
-                Ok(Err(f)) => {
-                    let mut p = Problem::new(
-                        if f.kind == "spec" {
-                            "invalid-spec"
-                        } else {
-                            "solver-error"
-                        },
-                        if f.kind == "spec" {
-                            "Invalid spec"
-                        } else {
-                            "Solver error"
-                        },
-                        422,
-                        f.message,
-                    );
-                    p.path = f.path;
-                    p.wavelength_nm = f.wavelength_nm;
-                    p.retryable = Some(false);
-                    Outcome::Failed(p)
-                }
+                Ok(Err(f)) => Outcome::Failed(f),
                 Err(panic) => Outcome::Internal(panic_message(panic.as_ref())),
             };
             let _ = done_tx.send(outcome);
@@ -565,10 +539,10 @@ impl Jobs {
                     )
                     .await
             }
-            Ok(Outcome::Failed(p)) => {
+            Ok(Outcome::Failed(f)) => {
                 self.metrics.solves_failed.fetch_add(1, Ordering::Relaxed);
-                tracing::info!(detail = %p.detail, "job failed");
-                self.index.fail(id, &to_json(&p), now).await
+                tracing::info!(detail = %f.message, "job failed");
+                self.fail(id, &JobFailure::Solve(f), now).await
             }
             Ok(Outcome::Cancelled) => {
                 // Shutdown before a worker took it: it stays queued.
@@ -578,26 +552,12 @@ impl Jobs {
             Ok(Outcome::Internal(message)) => {
                 self.metrics.solves_failed.fetch_add(1, Ordering::Relaxed);
                 tracing::error!(%message, "job failed with an internal error");
-                let mut p = Problem::new(
-                    "internal-error",
-                    "Internal error",
-                    500,
-                    "the solve failed unexpectedly; submitting the spec again retries it",
-                );
-                p.retryable = Some(true);
-                self.index.fail(id, &to_json(&p), now).await
+                self.fail(id, &JobFailure::Internal, now).await
             }
             Err(_) => {
                 self.metrics.solves_failed.fetch_add(1, Ordering::Relaxed);
                 tracing::error!("the solve ended without an outcome");
-                let mut p = Problem::new(
-                    "internal-error",
-                    "Internal error",
-                    500,
-                    "the solve ended without an outcome; submitting the spec again retries it",
-                );
-                p.retryable = Some(true);
-                self.index.fail(id, &to_json(&p), now).await
+                self.fail(id, &JobFailure::NoOutcome, now).await
             }
         };
         if let Err(e) = written {
@@ -652,6 +612,13 @@ impl Jobs {
         }
     }
 
+    /// Mark a row failed with the record of `failure`.
+    async fn fail(&self, id: &str, failure: &JobFailure, now: i64) -> Result<(), StorageError> {
+        self.index
+            .fail(id, &FailureRecord::of(failure).to_json(), now)
+            .await
+    }
+
     /// Refuse new submissions and let workers skip jobs they have not
     /// started (they stay queued in the index).
     pub fn stop_accepting(&self) {
@@ -684,15 +651,10 @@ impl Jobs {
     }
 }
 
+/// A failed row is solved again unless its record says the failure is
+/// final (a row without a readable record is retried).
 fn is_retryable(row: &JobRow) -> bool {
-    row.error
-        .as_deref()
-        .and_then(|e| serde_json::from_str::<Problem>(e).ok())
-        .is_none_or(|p| p.retryable == Some(true))
-}
-
-fn to_json(p: &Problem) -> String {
-    serde_json::to_string(p).expect("problem JSON")
+    FailureRecord::of_row(row).is_none_or(|r| r.retryable())
 }
 
 fn panic_message(p: &(dyn std::any::Any + Send)) -> String {

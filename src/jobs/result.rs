@@ -14,9 +14,9 @@
 use crate::brdf::format::{self, DataType};
 use crate::brdf::table::{self, BuildOptions};
 use crate::brdf::{BrdfError, Table};
+use crate::material::Spec;
+use crate::plan::Plan;
 use crate::solver;
-use crate::spec::Spec;
-use crate::spec::plan::Plan;
 use std::time::Instant;
 
 /// Media type of the stored bytes, with the table format version
@@ -51,8 +51,8 @@ pub struct Solved {
 /// solver rejected the problem. Deterministic, so final.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SolveFailure {
-    /// `spec` or `solver`.
-    pub kind: &'static str,
+    /// Whose refusal it is.
+    pub kind: SolveFailureKind,
     /// JSON path in the spec, when known.
     pub path: Option<String>,
     /// What went wrong.
@@ -119,23 +119,32 @@ pub fn solve(
     })
 }
 
+/// Whose refusal a [`SolveFailure`] is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SolveFailureKind {
+    /// The spec (lowering, or its wavelengths).
+    Spec,
+    /// The solver.
+    Solver,
+}
+
 fn failure(e: BrdfError, wavelength_nm: Option<f64>) -> SolveFailure {
     match e {
         BrdfError::Spec(s) => SolveFailure {
-            kind: "spec",
+            kind: SolveFailureKind::Spec,
             path: Some(s.path),
             message: s.message,
             wavelength_nm,
         },
         BrdfError::Solver(s) => SolveFailure {
-            kind: "solver",
+            kind: SolveFailureKind::Solver,
             path: None,
             message: s.to_string(),
             wavelength_nm,
         },
         // Duplicate wavelengths and the like.
         other => SolveFailure {
-            kind: "spec",
+            kind: SolveFailureKind::Spec,
             path: Some("wavelengths_nm".into()),
             message: other.to_string(),
             wavelength_nm,

@@ -24,9 +24,10 @@
 
 use crate::brdf::angles::dphi_prop_rad;
 use crate::brdf::{Directions, Table};
+use crate::material;
 use crate::physics::stokes::{Mueller, apply, degree_of_polarization};
+use crate::plan::StreamPolicy;
 use crate::solver::{self, Problem, ReflectionFourier, SolverError, Thickness};
-use crate::spec::{self, StreamPolicy};
 use rayon::prelude::*;
 
 /// Unpolarized incident light.
@@ -136,10 +137,14 @@ pub fn reflect(
             p.settings.streams = n;
             solver::reflection(&p, mu)
         }
-        StreamPolicy::Tolerance(t) => {
-            solver::accuracy::reflection_to_tolerance(problem, mu, t, spec::MAX_STREAMS, &|_| {})
-                .map(|e| e.reflection)
-        }
+        StreamPolicy::Tolerance(t) => solver::accuracy::reflection_to_tolerance(
+            problem,
+            mu,
+            t,
+            material::MAX_STREAMS,
+            &|_| {},
+        )
+        .map(|e| e.reflection),
     }
 }
 
@@ -627,7 +632,7 @@ mod tests {
     /// directions, and the table at its nodes is the direct solve.
     #[test]
     fn lobe_samples_are_table_evaluations() {
-        let spec = crate::spec::parse(
+        let spec = crate::material::parse(
             r#"{"layers":[{"optical_thickness":0.5,"scatterer":{"rayleigh":{"albedo":0.9}}}],
                 "base":{"lambertian":{"albedo":0.3}},"solver":{"streams":8}}"#,
         )
@@ -651,7 +656,7 @@ mod tests {
         assert!(map.iter().all(|s| s.f11 > 0.0 && s.dop <= 1.0));
 
         // Table nodes (θ = 0 and θ = 90·sin(π/2·k/11)) reproduce a direct solve.
-        let problem = crate::spec::problem(&spec, None).unwrap();
+        let problem = crate::plan::problem(&spec, None).unwrap();
         let mu0 = table.grid.mu[4];
         let mu = table.grid.mu[7];
         let r = reflect(&problem, StreamPolicy::Fixed(8), &distinct([mu0, mu])).unwrap();

@@ -578,7 +578,7 @@ mod tests {
     fn rayleigh_scene(max_bounces: usize) -> Scene {
         let text = r#"{"layers": [{"optical_thickness": 0.05,
                  "scatterer": {"rayleigh": {"albedo": 1.0}}}], "solver": {"streams": 8}}"#;
-        let spec = crate::spec::parse(text).unwrap();
+        let spec = crate::material::parse(text).unwrap();
         let table =
             crate::brdf::Table::from_spec(&spec, crate::brdf::grid::PolarGrid::graded(24).unwrap())
                 .unwrap();
@@ -650,7 +650,7 @@ mod tests {
     /// Tolerance 1e-6: the table interpolates `S(μ_i)` on its 64-node grid.
     #[test]
     fn mirror_base_reflects_the_sky_polarized_at_brewster() {
-        let spec = crate::spec::parse(
+        let spec = crate::material::parse(
             r#"{"layers": [{"optical_thickness": 0, "scatterer": {"rayleigh": {"albedo": 1.0}}}],
                 "base": {"fresnel": {"material": {"n": 1.5, "k": 0.0}}}, "solver": {"streams": 4}}"#,
         )

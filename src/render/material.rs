@@ -203,7 +203,7 @@ mod tests {
                  "scatterer": {{"rayleigh": {{"albedo": 0.9}}}}}}],
                 "base": {base}, "solver": {{"streams": 6}}}}"#
         );
-        let spec = crate::spec::parse(&text).unwrap();
+        let spec = crate::material::parse(&text).unwrap();
         let mut t = Table::from_spec(&spec, PolarGrid::graded(12).unwrap()).unwrap();
         if let Some(wls) = wavelengths {
             // Same optics at several wavelengths, scaled so that they differ.

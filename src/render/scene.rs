@@ -197,7 +197,7 @@ pub const MAX_BOUNCES: u32 = 16;
 /// Parse and validate a scene; errors name the JSON path
 /// (`lights[0].directional.stokes: …`).
 pub fn parse(text: &str) -> Result<SceneDesc, String> {
-    let scene: SceneDesc = crate::spec::json::from_str(text).map_err(|e| e.to_string())?;
+    let scene: SceneDesc = crate::material::from_json_str(text).map_err(|e| e.to_string())?;
     validate(&scene)?;
     Ok(scene)
 }

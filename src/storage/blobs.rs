@@ -8,7 +8,7 @@
 //! Synchronous file I/O: call it from a blocking context (the solve's rayon
 //! thread or `tokio::task::spawn_blocking`), never on the async runtime.
 
-use crate::spec::canonical::{is_id, sha256_hex};
+use crate::digest::{is_sha256_hex, sha256_hex};
 use std::fs::{self, File};
 use std::io::{self, Write};
 use std::path::{Path, PathBuf};
@@ -77,7 +77,7 @@ impl BlobStore {
     /// blob is missing or its bytes do not match (the corrupt file is
     /// removed so that the next write replaces it).
     pub fn get(&self, digest: &str) -> io::Result<Option<Vec<u8>>> {
-        if !is_id(digest) {
+        if !is_sha256_hex(digest) {
             return Ok(None);
         }
         let path = self.path(digest);
@@ -101,7 +101,7 @@ impl BlobStore {
     /// Cheap presence check (exists with the expected size); [`Self::get`]
     /// verifies the bytes.
     pub fn looks_present(&self, digest: &str, size: u64) -> bool {
-        is_id(digest) && fs::metadata(self.path(digest)).is_ok_and(|m| m.len() == size)
+        is_sha256_hex(digest) && fs::metadata(self.path(digest)).is_ok_and(|m| m.len() == size)
     }
 }
 

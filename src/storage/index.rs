@@ -8,7 +8,7 @@
 //! `FOR UPDATE SKIP LOCKED` and leases) behind the same methods.
 
 use super::StorageError;
-use crate::spec::canonical::result_version;
+use crate::plan::result_version;
 use sqlx::sqlite::{SqliteConnectOptions, SqliteJournalMode, SqlitePoolOptions, SqliteSynchronous};
 use sqlx::{Row, SqlitePool};
 use std::str::FromStr;
@@ -91,7 +91,7 @@ pub struct JobRow {
     /// When it became done or failed (ms since the epoch).
     pub finished_at: Option<i64>,
     /// The schema/solver version that made the row
-    /// ([`crate::spec::canonical::result_version`]).
+    /// ([`crate::plan::result_version`]).
     pub result_version: String,
 }
 

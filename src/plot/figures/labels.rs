@@ -1,8 +1,9 @@
 //! The words of the figures: names of materials, bases, thicknesses,
 //! incident states and solver settings in titles, legends and footnotes.
 
+use crate::material::{BaseSpec, MaterialSpec, ScattererSpec, Spec, ThicknessSpec};
+use crate::plan::StreamPolicy;
 use crate::solver::Thickness;
-use crate::spec::{BaseSpec, MaterialSpec, ScattererSpec, Spec, StreamPolicy, ThicknessSpec};
 use std::path::Path;
 
 /// A Stokes vector as `1:0:0:0` text (labels, CSV).

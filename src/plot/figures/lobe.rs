@@ -12,7 +12,7 @@ use crate::physics::stokes::Mueller;
 use crate::plot::csv::{Cell, Csv};
 use crate::plot::curves::{self, LobeSample};
 use crate::plot::figure::{Dash, Figure, LobePanel, MapPanel, Panel, Series, lobe_xy, nice_ceil};
-use crate::spec;
+use crate::{material, plan};
 use rayon::prelude::*;
 use serde::Serialize;
 use std::borrow::Cow;
@@ -330,7 +330,7 @@ fn lobes<'a>(inputs: &[LobeInput<'a>], o: &LobeOptions) -> Result<Vec<Lobe<'a>>,
             if let Some(n) = o.solve.streams {
                 spec.solver.streams = Some(n);
             }
-            spec::validate(&spec).map_err(|e| PlotError::spec(path, e))?;
+            material::validate(&spec).map_err(|e| PlotError::spec(path, e))?;
             specs.push((path, spec, wl));
         }
     }
@@ -344,7 +344,7 @@ fn lobes<'a>(inputs: &[LobeInput<'a>], o: &LobeOptions) -> Result<Vec<Lobe<'a>>,
                 origin: format!(
                     "{} ({})",
                     file_name(path),
-                    policy_text(spec::stream_policy(spec))
+                    policy_text(plan::stream_policy(spec))
                 ),
                 table: Cow::Owned(table),
                 wavelength_nm: *wl,

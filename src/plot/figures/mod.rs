@@ -47,7 +47,8 @@ pub use sweeps::{
 use super::csv::Csv;
 use super::figure::Figure;
 use crate::brdf::Table;
-use crate::spec::{Spec, StreamPolicy};
+use crate::material::Spec;
+use crate::plan::StreamPolicy;
 use serde::Serialize;
 
 /// Why a figure cannot be made.
@@ -104,7 +105,7 @@ pub struct SolveOptions {
     /// Vacuum wavelength (nm) to plot; `None`: the spec's or the table's
     /// first.
     pub wavelength_nm: Option<f64>,
-    /// Quadrature streams per hemisphere, in `[1, spec::MAX_STREAMS]`,
+    /// Quadrature streams per hemisphere, in `[1, material::MAX_STREAMS]`,
     /// overriding the spec's `solver.streams` / `solver.tolerance` (specs
     /// only: a table is already solved).
     pub streams: Option<usize>,

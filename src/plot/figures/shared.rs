@@ -4,11 +4,12 @@
 
 use super::{PlotError, SolveOptions};
 use crate::brdf::Table;
+use crate::material::Spec;
+use crate::plan::{self, StreamPolicy};
 use crate::plot::csv::{Cell, Csv};
 use crate::plot::curves::{self, DopSample};
 use crate::plot::figure::{Axis, Dash, Figure, LinePanel, Panel, nice_ceil};
 use crate::solver::Problem;
-use crate::spec::{self, Spec, StreamPolicy};
 
 /// Image size of the one-panel line figures unless the caller gives one.
 pub(super) const LINE_SIZE: (u32, u32) = (900, 540);
@@ -33,8 +34,8 @@ pub(super) fn solvable(
     let wavelength_nm = spec_wavelength(spec, opts.wavelength_nm);
     let policy = opts
         .streams
-        .map_or_else(|| spec::stream_policy(spec), StreamPolicy::Fixed);
-    let problem = spec::problem(spec, wavelength_nm).map_err(|e| PlotError::spec(path, e))?;
+        .map_or_else(|| plan::stream_policy(spec), StreamPolicy::Fixed);
+    let problem = plan::problem(spec, wavelength_nm).map_err(|e| PlotError::spec(path, e))?;
     Ok(Solvable {
         wavelength_nm,
         policy,
@@ -44,7 +45,7 @@ pub(super) fn solvable(
 
 /// The wavelength to plot for a spec: the option, else the spec's first.
 pub(super) fn spec_wavelength(spec: &Spec, opt: Option<f64>) -> Option<f64> {
-    opt.or_else(|| spec::wavelengths(spec)[0])
+    opt.or_else(|| plan::wavelengths(spec)[0])
 }
 
 /// The wavelength to evaluate a table at: the option (which the table must

@@ -10,11 +10,11 @@
 use super::labels::{base_name, file_name, material_name, policy_text, stokes_name, wl_text};
 use super::shared::{Solvable, dash_of, dop_csv, line_figure, min_max_by, percent_axis, solvable};
 use super::{Plot, PlotError, SolveOptions, SolverSummary};
+use crate::material::Spec;
 use crate::plot::csv::Csv;
 use crate::plot::curves::{self, DopSample, ErrorSample};
 use crate::plot::figure::{Axis, Dash, Legend, LinePanel, Series};
 use crate::solver::Thickness;
-use crate::spec::Spec;
 use rayon::prelude::*;
 use serde::Serialize;
 

@@ -13,7 +13,7 @@ use crate::plot::figure::{Dash, Panel};
 use crate::solver::Thickness;
 
 fn rayleigh(tau: f64, albedo: f64, base: &str) -> Spec {
-    crate::spec::parse(&format!(
+    crate::material::parse(&format!(
         r#"{{"layers":[{{"optical_thickness":{tau},"scatterer":{{"rayleigh":{{"albedo":{albedo}}}}}}}],
             "base":{base},"solver":{{"streams":8}}}}"#
     ))

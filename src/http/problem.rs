@@ -1,5 +1,6 @@
-//! RFC 9457 problem details: the error body of every HTTP error and the
-//! typed error stored with a failed job.
+//! RFC 9457 problem details: the error body of every HTTP error
+//! (`application/problem+json`). [`super::error`] maps every [`super::ApiError`]
+//! and the stored failure of a job to one.
 
 use serde::{Deserialize, Serialize};
 

@@ -1,5 +1,5 @@
-//! Canonical form and content address of a parsed spec (docs/service.md,
-//! "Canonical form and id").
+//! Canonical form of a parsed spec (docs/service.md, "Canonical form and
+//! id", steps 1 and 2; the id of step 3 is `crate::plan::id`).
 //!
 //! Two specs that mean the same computation get the same bytes, hence the
 //! same id, so the service solves each material once:
@@ -15,34 +15,11 @@
 //!    is written `0`;
 //! 2. the JSON text has its object keys sorted (byte order), no whitespace,
 //!    and every number in serde_json's shortest round-trip form (`1.0`,
-//!    `1e-6`, `0.973527`; integers such as `streams` without a fraction);
-//! 3. the id is the lowercase hex SHA-256 of
-//!    `"polbrdf-spec/" + SCHEMA_VERSION + "\n" + "polbrdf-solver/" + SOLVER_VERSION + "\n" + canonical_json`.
-//!
-//! Mixing both versions into the hash (as sccache does) retires every cached
-//! result at once when the meaning of a spec or the solver's output changes:
-//! bump [`SCHEMA_VERSION`] when a field's meaning or default changes, and
-//! [`SOLVER_VERSION`] when results change beyond round-off.
+//!    `1e-6`, `0.973527`; integers such as `streams` without a fraction).
 
-use super::{BaseSpec, ExpansionSpec, MaterialSpec, ScattererSpec, Spec};
+use super::{BaseSpec, DEFAULT_STREAMS, ExpansionSpec, MaterialSpec, ScattererSpec, Spec};
 use crate::physics::materials;
 use serde_json::Value;
-use sha2::{Digest, Sha256};
-
-/// Version of the spec schema mixed into every id.
-pub const SCHEMA_VERSION: &str = "1";
-
-/// Version of the solver's results mixed into every id. Version 3: the
-/// Greek coefficient `ε` is read and written in the Siewert sign of
-/// conventions §4 (`b2 = −Σ ε_l d^l_02`); version 2 read a user's `ε` with the
-/// opposite sign, so every result with an `expansion` layer changed.
-pub const SOLVER_VERSION: &str = "3";
-
-/// The version label stored with every cached row: `"polbrdf-spec/S
-/// polbrdf-solver/V"`. A row with another label is never served (docs/service.md).
-pub fn result_version() -> String {
-    format!("polbrdf-spec/{SCHEMA_VERSION} polbrdf-solver/{SOLVER_VERSION}")
-}
 
 /// The spec with the defaults of its own fields filled in and equivalent
 /// spellings unified (step 1 of the module documentation, except the solver
@@ -107,7 +84,9 @@ fn trim_expansion(e: &mut ExpansionSpec) {
 /// The JSON value of the canonical form: [`normalized`], then the solver
 /// defaults made explicit. `streams` is written whenever it decides the
 /// computation: an explicit `streams` wins over a `tolerance` (which is then
-/// dropped), and with neither the default stream count is written.
+/// dropped), and with neither the default stream count
+/// ([`DEFAULT_STREAMS`], what `crate::plan::settings` solves with) is
+/// written.
 pub fn canonical_value(spec: &Spec) -> Value {
     let mut v = serde_json::to_value(normalized(spec)).expect("a spec serializes to JSON");
     if let Some(solver) = v.get_mut("solver").and_then(Value::as_object_mut) {
@@ -116,27 +95,11 @@ pub fn canonical_value(spec: &Spec) -> Value {
         if streams {
             solver.remove("tolerance");
         } else if !tolerance {
-            solver.insert("streams".into(), Value::from(default_streams()));
+            solver.insert("streams".into(), Value::from(DEFAULT_STREAMS));
         }
         solver.retain(|_, x| !x.is_null());
     }
     v
-}
-
-/// The stream count the solver uses when the spec gives neither `streams`
-/// nor `tolerance`, as [`super::problem`] resolves it.
-fn default_streams() -> usize {
-    static STREAMS: std::sync::OnceLock<usize> = std::sync::OnceLock::new();
-    *STREAMS.get_or_init(|| {
-        let probe = super::parse(
-            r#"{"layers":[{"optical_thickness":1,"scatterer":{"rayleigh":{"albedo":1}}}]}"#,
-        )
-        .expect("probe spec");
-        super::problem(&probe, None)
-            .expect("probe problem")
-            .settings
-            .streams
-    })
 }
 
 /// Canonical JSON text of a spec (steps 1 and 2 of the module
@@ -187,52 +150,13 @@ pub fn write_canonical(v: &Value, out: &mut String) {
     }
 }
 
-/// The bytes that are hashed into an id: the two version lines and the
-/// canonical JSON (step 3 of the module documentation).
-pub fn id_preimage(canonical_json: &str) -> String {
-    format!("polbrdf-spec/{SCHEMA_VERSION}\npolbrdf-solver/{SOLVER_VERSION}\n{canonical_json}")
-}
-
-/// Lowercase hex of a byte string.
-pub fn hex(bytes: &[u8]) -> String {
-    const DIGITS: &[u8; 16] = b"0123456789abcdef";
-    let mut s = String::with_capacity(bytes.len() * 2);
-    for b in bytes {
-        s.push(DIGITS[(b >> 4) as usize] as char);
-        s.push(DIGITS[(b & 15) as usize] as char);
-    }
-    s
-}
-
-/// Lowercase hex SHA-256 of a byte string.
-pub fn sha256_hex(bytes: &[u8]) -> String {
-    hex(&Sha256::digest(bytes))
-}
-
-/// The id of a canonical JSON text.
-pub fn id_of_canonical(canonical_json: &str) -> String {
-    sha256_hex(id_preimage(canonical_json).as_bytes())
-}
-
-/// The content address of a spec: its canonical JSON and its id.
-pub fn id(spec: &Spec) -> (String, String) {
-    let c = canonical_json(spec);
-    let id = id_of_canonical(&c);
-    (c, id)
-}
-
-/// True for a well-formed id (64 lowercase hex digits).
-pub fn is_id(s: &str) -> bool {
-    s.len() == 64 && s.bytes().all(|b| matches!(b, b'0'..=b'9' | b'a'..=b'f'))
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::spec::parse;
+    use crate::material::parse;
 
     #[test]
-    fn defaults_order_and_spelling_do_not_change_the_id() {
+    fn defaults_order_and_spelling_do_not_change_the_form() {
         let a =
             parse(r#"{"layers":[{"optical_thickness":1,"scatterer":{"rayleigh":{"albedo":1}}}]}"#)
                 .unwrap();
@@ -243,7 +167,6 @@ mod tests {
         )
         .unwrap();
         assert_eq!(canonical_json(&a), canonical_json(&b));
-        assert_eq!(id(&a).1, id(&b).1);
         assert_eq!(
             canonical_json(&a),
             r#"{"base":"black","layers":[{"optical_thickness":1.0,"scatterer":{"rayleigh":{"albedo":1.0,"depolarization":0.0}}}],"solver":{"polarized":true,"streams":16}}"#
@@ -297,7 +220,7 @@ mod tests {
     }
 
     #[test]
-    fn different_physics_different_id() {
+    fn different_physics_different_form() {
         let a =
             parse(r#"{"layers":[{"optical_thickness":1,"scatterer":{"rayleigh":{"albedo":1}}}]}"#)
                 .unwrap();
@@ -305,13 +228,13 @@ mod tests {
             r#"{"layers":[{"optical_thickness":1.0000000000000002,"scatterer":{"rayleigh":{"albedo":1}}}]}"#,
         )
         .unwrap();
-        assert_ne!(id(&a).1, id(&b).1);
-        assert!(is_id(&id(&a).1));
+        assert_ne!(canonical_json(&a), canonical_json(&b));
     }
 
     /// `solver.secondary_scattering`: the default `true` is the absent
     /// field (ids of earlier specs are unchanged); `false` is another
-    /// computation, written out, and reaches the solver's settings.
+    /// computation, written out (`crate::plan` tests that it reaches the
+    /// solver's settings and changes the id).
     #[test]
     fn secondary_scattering_default_is_implicit() {
         let layers = r#""wavelengths_nm":[550],"layers":[{"optical_thickness":1,"scatterer":{"mie":{"material":{"n":1.5,"k":0.001},"radius_um":3.0}}}]"#;
@@ -324,12 +247,8 @@ mod tests {
             r#"{{{layers},"solver":{{"secondary_scattering":false}}}}"#
         ))
         .unwrap();
-        assert_eq!(id(&absent), id(&on));
-        assert!(!id(&absent).0.contains("secondary_scattering"));
-        assert!(id(&off).0.contains(r#""secondary_scattering":false"#));
-        assert_ne!(id(&absent).1, id(&off).1);
-        let settings = |s: &Spec| crate::spec::problem(s, Some(550.0)).unwrap().settings;
-        assert!(settings(&on).secondary_scattering);
-        assert!(!settings(&off).secondary_scattering);
+        assert_eq!(canonical_json(&absent), canonical_json(&on));
+        assert!(!canonical_json(&absent).contains("secondary_scattering"));
+        assert!(canonical_json(&off).contains(r#""secondary_scattering":false"#));
     }
 }

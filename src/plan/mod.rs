@@ -1,12 +1,38 @@
-//! Lowering: a validated spec, once, into what the table builder and the job
-//! layer run. Mie theory and the expansion run here, once per wavelength and
-//! layer (before, the table builder lowered the spec again only to read its
-//! settings, and the job layer once more per wavelength); the canonical form
-//! and its id (docs/service.md, "Ids and versions") are computed once.
+//! Lowering: a validated spec (`crate::material`), once, into what the table
+//! builder and the job layer run (docs/service.md, docs/solver.md).
+//!
+//! A [`Plan`] holds the canonical physical spec and its id ([`id`]), the
+//! stream policy and the solver settings, and per wavelength the solver
+//! problem with Mie theory and the expansion done. Before, the table
+//! builder lowered the spec again only to read its settings, and the job
+//! layer once more per wavelength; now each runs once.
+//!
+//! * [`problem`] lowers one wavelength (`lower`): layer optics, the base,
+//!   the settings;
+//! * Mie layers and size distributions (`mie`), with
+//!   [`max_size_parameter`], the cost the service caps;
+//! * [`check_solvable`] (`solvable`): what the physics and the solver would
+//!   refuse that the spec alone decides, checked before any solve;
+//! * [`id`]: the content address of the canonical form and the version
+//!   label of every stored result.
 
-use super::needs::Needs;
-use super::{Spec, wavelengths};
-use super::{SpecError, StreamPolicy, canonical, fresnel_indices, problem, stream_policy};
+pub mod id;
+mod lower;
+mod mie;
+mod solvable;
+
+pub use id::{
+    SCHEMA_VERSION, SOLVER_VERSION, id_of_canonical, id_of_spec, id_preimage, is_id, result_version,
+};
+pub use lower::{
+    StreamPolicy, fresnel_indices, fresnel_mirror, layer_optics, problem, settings, stream_policy,
+    wavelengths,
+};
+pub use mie::max_size_parameter;
+pub use solvable::check_solvable;
+
+use crate::material::needs::Needs;
+use crate::material::{Spec, SpecError};
 use crate::physics::RefractiveIndex;
 use crate::solver::{Problem, Settings};
 
@@ -39,15 +65,15 @@ pub struct Lowered {
 }
 
 impl Plan {
-    /// Lower a validated spec ([`super::parse`]); fails as [`problem`] does
-    /// (a Mie or expansion refusal, naming the layer).
+    /// Lower a validated spec (`crate::material::parse`); fails as [`problem`]
+    /// does (a Mie or expansion refusal, naming the layer).
     pub fn lower(spec: &Spec) -> Result<Self, SpecError> {
         Self::lower_naming_wavelength(spec).map_err(|(e, _)| e)
     }
 
     /// [`Plan::lower`], its error with the wavelength being lowered.
     pub fn lower_naming_wavelength(spec: &Spec) -> Result<Self, (SpecError, Option<f64>)> {
-        let (canonical_json, id) = canonical::id(spec);
+        let (canonical_json, id) = id_of_spec(spec);
         let mut lowered = Vec::new();
         for wl in wavelengths(spec) {
             let at = |e| (e, wl);
@@ -61,7 +87,7 @@ impl Plan {
             canonical_json,
             id,
             policy: stream_policy(spec),
-            settings: super::settings(spec),
+            settings: settings(spec),
             wavelengths: lowered,
             needs: spec.needs.normalized(),
         })
@@ -76,17 +102,18 @@ impl Plan {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::material::parse;
 
     #[test]
     fn a_plan_holds_one_problem_per_wavelength_and_the_service_id() {
-        let s = super::super::parse(
+        let s = parse(
             r#"{"layers":[{"optical_thickness":1,"scatterer":{"mie":{"material":"TiO2","radius_um":0.2}}}],
                 "base":{"fresnel":{"material":"silver"}},"wavelengths_nm":[650,450,550],
                 "solver":{"streams":8}}"#,
         )
         .unwrap();
         let plan = Plan::lower(&s).unwrap();
-        assert_eq!(plan.id, canonical::id(&s).1);
+        assert_eq!(plan.id, id_of_spec(&s).1);
         let wl: Vec<_> = plan.wavelengths.iter().map(|w| w.wavelength_nm).collect();
         assert_eq!(wl, [Some(650.0), Some(450.0), Some(550.0)]);
         for w in &plan.wavelengths {

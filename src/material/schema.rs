@@ -1,0 +1,284 @@
+//! The material spec as users write it (docs/spec.md): the types JSON
+//! deserializes into. Reading them (one JSON document, objects with exactly
+//! one key where the schema says so) is `material::parse`; the ranges are
+//! `material::validate`.
+
+use serde::{Deserialize, Serialize};
+
+/// A spec error: the JSON path of the problem and what is allowed there.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[error("{path}: {message}")]
+pub struct SpecError {
+    /// JSON path, e.g. `layers[0].scatterer.mie.radius_um`.
+    pub path: String,
+    /// What is wrong and what is allowed.
+    pub message: String,
+}
+
+impl SpecError {
+    pub(crate) fn new(path: impl Into<String>, message: impl Into<String>) -> Self {
+        Self {
+            path: path.into(),
+            message: message.into(),
+        }
+    }
+}
+
+/// The material spec (docs/spec.md).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Spec {
+    /// Layers, top to bottom.
+    pub layers: Vec<LayerSpec>,
+    /// Lower boundary.
+    #[serde(
+        default,
+        deserialize_with = "crate::material::parse::one_key::<_, BaseSpec>"
+    )]
+    pub base: BaseSpec,
+    /// Vacuum wavelengths in nm; required when anything depends on wavelength.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub wavelengths_nm: Option<Vec<f64>>,
+    /// Numerical settings.
+    #[serde(default)]
+    pub solver: SolverSpec,
+    /// What the request needs of its result ([`super::needs`]); absent:
+    /// the full product, and then out of the canonical form.
+    #[serde(default, skip_serializing_if = "super::needs::Needs::is_full")]
+    pub needs: super::needs::Needs,
+}
+
+/// One homogeneous layer.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LayerSpec {
+    /// A number ≥ 0 or the string `"infinite"` (last layer only).
+    pub optical_thickness: ThicknessSpec,
+    /// What scatters in the layer.
+    pub scatterer: ScattererSpec,
+}
+
+/// Optical thickness as written in JSON.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum ThicknessSpec {
+    /// A finite thickness.
+    Number(f64),
+    /// Must be `"infinite"`.
+    Word(String),
+}
+
+/// The scatterer of a layer: an object with exactly one of the keys
+/// [`SCATTERERS`] (deserialized by hand so that a second key is named as
+/// such, not as a JSON syntax error).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ScattererSpec {
+    /// Mie spheres.
+    Mie(MieSpec),
+    /// Given Greek coefficients (conventions §4).
+    Expansion(ExpansionSpec),
+    /// Rayleigh–Cabannes scattering.
+    Rayleigh {
+        /// Single-scattering albedo.
+        albedo: f64,
+        /// Depolarization factor `ρ ∈ [0, 1)`.
+        #[serde(default)]
+        depolarization: f64,
+    },
+    /// Henyey–Greenstein phase function (a1 only, no polarization).
+    HenyeyGreenstein {
+        /// Single-scattering albedo.
+        albedo: f64,
+        /// Asymmetry parameter `g ∈ (−1, 1)`.
+        g: f64,
+    },
+}
+
+/// The keys of a `scatterer` object, one of which it must have.
+pub const SCATTERERS: [&str; 4] = ["mie", "expansion", "rayleigh", "henyey_greenstein"];
+
+/// A material given by name or by index.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum MaterialSpec {
+    /// Built-in material (`physics::materials`).
+    Name(String),
+    /// Explicit complex index `n + i k`.
+    Index {
+        /// Real part.
+        n: f64,
+        /// Imaginary part (≥ 0 absorbs).
+        k: f64,
+    },
+}
+
+/// Mie spheres in a binder.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MieSpec {
+    /// Particle material.
+    pub material: MaterialSpec,
+    /// Radius of monodisperse spheres (µm); exclusive with `size_distribution`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub radius_um: Option<f64>,
+    /// Size distribution; exclusive with `radius_um`.
+    #[serde(
+        default,
+        skip_serializing_if = "Option::is_none",
+        deserialize_with = "crate::material::parse::some_one_key"
+    )]
+    pub size_distribution: Option<SizeDistributionSpec>,
+    /// Real refractive index of the binder (≥ 1).
+    #[serde(default = "one")]
+    pub host_index: f64,
+}
+
+fn one() -> f64 {
+    1.0
+}
+
+/// Particle size distributions.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
+pub enum SizeDistributionSpec {
+    /// Log-normal number distribution.
+    Lognormal {
+        /// Geometric mean radius (µm).
+        r_g_um: f64,
+        /// Geometric standard deviation (> 1).
+        sigma_g: f64,
+        /// Explicit lower limit of the radius integral (µm); with
+        /// `radius_max_um`, replaces the tail cuts of `physics::psd`.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        radius_min_um: Option<f64>,
+        /// Explicit upper limit of the radius integral (µm).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        radius_max_um: Option<f64>,
+    },
+    /// Gamma distribution (Hansen & Travis 1974).
+    Gamma {
+        /// Effective radius (µm).
+        r_eff_um: f64,
+        /// Effective variance (> 0, < 0.5).
+        v_eff: f64,
+        /// Explicit lower limit of the radius integral (µm); see `Lognormal`.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        radius_min_um: Option<f64>,
+        /// Explicit upper limit of the radius integral (µm).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        radius_max_um: Option<f64>,
+    },
+}
+
+impl SizeDistributionSpec {
+    /// The explicit integration limits `(radius_min_um, radius_max_um)`.
+    pub fn radius_limits_um(&self) -> (Option<f64>, Option<f64>) {
+        match *self {
+            Self::Lognormal {
+                radius_min_um,
+                radius_max_um,
+                ..
+            }
+            | Self::Gamma {
+                radius_min_um,
+                radius_max_um,
+                ..
+            } => (radius_min_um, radius_max_um),
+        }
+    }
+}
+
+/// Explicit expansion coefficients.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ExpansionSpec {
+    /// Single-scattering albedo.
+    pub albedo: f64,
+    /// β_l (β_0 = 1).
+    pub beta: Vec<f64>,
+    /// α_l (missing entries are 0).
+    #[serde(default)]
+    pub alpha: Vec<f64>,
+    /// ζ_l.
+    #[serde(default)]
+    pub zeta: Vec<f64>,
+    /// δ_l.
+    #[serde(default)]
+    pub delta: Vec<f64>,
+    /// γ_l.
+    #[serde(default)]
+    pub gamma: Vec<f64>,
+    /// ε_l.
+    #[serde(default)]
+    pub epsilon: Vec<f64>,
+}
+
+/// The lower boundary as written in JSON: `"black"` or an object.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
+pub enum BaseSpec {
+    /// No reflection.
+    #[default]
+    Black,
+    /// Depolarizing Lambertian reflector.
+    Lambertian {
+        /// Hemispherical reflectance in `[0, 1]`.
+        albedo: f64,
+    },
+    /// Smooth Fresnel interface with the binder above it.
+    Fresnel {
+        /// Base material.
+        material: MaterialSpec,
+        /// Real index of the medium above the base; default: the binder of
+        /// the last layer if it is a Mie layer, else 1.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        ambient_index: Option<f64>,
+    },
+}
+
+/// Numerical settings.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SolverSpec {
+    /// Quadrature points per hemisphere; explicit streams win over
+    /// `tolerance`. Default 16 when neither is given.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub streams: Option<usize>,
+    /// Requested accuracy (estimated max error of f11 relative to max f11):
+    /// the solver picks the cheapest stream count predicted to meet it
+    /// (`solver::accuracy`). Ignored when `streams` is given.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tolerance: Option<f64>,
+    /// Vector (true) or scalar (false) radiative transfer.
+    #[serde(default = "yes")]
+    pub polarized: bool,
+    /// Add the exact double scattering through a delta-M truncated forward
+    /// peak at user angles (`solver::secondary`; docs/solver.md). Only
+    /// layers whose series the streams cannot hold are affected; `false`
+    /// saves its cost (seconds for Mie x ≈ 100 on a 64-node table) where
+    /// the grazing forward directions do not matter. Written in the
+    /// canonical form only when `false`.
+    #[serde(default = "yes", skip_serializing_if = "is_true")]
+    pub secondary_scattering: bool,
+}
+
+/// Streams when neither `streams` nor `tolerance` is given.
+pub const DEFAULT_STREAMS: usize = 16;
+fn yes() -> bool {
+    true
+}
+fn is_true(x: &bool) -> bool {
+    *x
+}
+
+impl Default for SolverSpec {
+    fn default() -> Self {
+        Self {
+            streams: None,
+            polarized: true,
+            tolerance: None,
+            secondary_scattering: true,
+        }
+    }
+}

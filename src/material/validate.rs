@@ -1,0 +1,451 @@
+//! Validation: every field of a parsed spec inside its allowed range, the
+//! error naming its JSON path and the range (docs/spec.md). The range texts
+//! are also what [`super::parse`] reports for a value that does not even
+//! parse at a numeric field.
+
+use super::{
+    BaseSpec, MaterialSpec, ScattererSpec, SizeDistributionSpec, Spec, SpecError, ThicknessSpec,
+};
+use crate::physics::materials;
+
+/// Hard limits of the spec (the service adds its own, lower, caps).
+pub const MAX_STREAMS: usize = 512;
+
+// Allowed ranges, one text per field: `validate` reports them, and so does
+// a value that does not even parse there (`NaN`, `1e999`, a string).
+const R_THICKNESS: &str = "[0, 1e12] (or \"infinite\")";
+const R_UNIT: &str = "[0, 1]";
+const R_INDEX_REAL: &str = "[1, 10]";
+const R_RADIUS: &str = "[1e-6, 1e4] µm";
+const R_SIGMA_G: &str = "[1.0001, 5]";
+const R_V_EFF: &str = "[1e-4, 0.49]";
+const R_DEPOLARIZATION: &str = "[0, 0.99]";
+const R_G: &str = "[-0.999, 0.999]";
+const R_N: &str = "(0, 100]";
+const R_K: &str = "[0, 100]";
+const R_WAVELENGTH: &str = "[100, 100000] nm";
+const R_STREAMS: &str = "[1, 512] (integer)";
+const R_TOLERANCE: &str = "[1e-10, 0.5]";
+const R_COEFFICIENT: &str = "finite numbers with |x| ≤ 1e6";
+
+/// A JSON path with its array indices left out: `layers[3].scatterer` →
+/// `layers[].scatterer`.
+pub(super) fn without_indices(path: &str) -> String {
+    let mut p = String::with_capacity(path.len());
+    let mut in_index = false;
+    for c in path.chars() {
+        match c {
+            '[' => {
+                in_index = true;
+                p.push('[');
+            }
+            ']' => {
+                in_index = false;
+                p.push(']');
+            }
+            _ if in_index => {}
+            _ => p.push(c),
+        }
+    }
+    p
+}
+
+/// The allowed range of the numeric field at a JSON path, if it is one.
+fn allowed_range(path: &str) -> Option<&'static str> {
+    let p = without_indices(path);
+    let p = p.as_str();
+    let tail = |suffix: &str| p.ends_with(suffix);
+    Some(match p {
+        "layers[].optical_thickness" => R_THICKNESS,
+        "wavelengths_nm[]" => R_WAVELENGTH,
+        "solver.streams" => R_STREAMS,
+        "solver.tolerance" => R_TOLERANCE,
+        "base.lambertian.albedo" => R_UNIT,
+        "base.fresnel.ambient_index" => R_INDEX_REAL,
+        _ if tail(".mie.host_index") => R_INDEX_REAL,
+        _ if tail(".mie.radius_um") || tail(".r_g_um") || tail(".r_eff_um") => R_RADIUS,
+        _ if tail(".sigma_g") => R_SIGMA_G,
+        _ if tail(".v_eff") => R_V_EFF,
+        _ if tail("material.n") => R_N,
+        _ if tail("material.k") => R_K,
+        _ if tail(".rayleigh.depolarization") => R_DEPOLARIZATION,
+        _ if tail(".henyey_greenstein.g") => R_G,
+        _ if tail(".albedo") => R_UNIT,
+        _ if p.starts_with("layers[].scatterer.expansion.") && tail("[]") => R_COEFFICIENT,
+        _ => return None,
+    })
+}
+
+/// A value that did not parse at a numeric field: name what is allowed
+/// there (`NaN`, `Infinity` and numbers beyond ±1.8e308 are not JSON numbers).
+pub(super) fn with_allowed_range(e: SpecError) -> SpecError {
+    let Some(range) = allowed_range(&e.path) else {
+        return e;
+    };
+    let not_a_number =
+        e.message.starts_with("expected value") || e.message.starts_with("number out of range");
+    let message = if not_a_number {
+        format!(
+            "not a finite JSON number ({}; NaN, Infinity and numbers beyond ±1.8e308 are not JSON); allowed: {range}",
+            e.message
+        )
+    } else {
+        format!("{}; allowed: {range}", e.message)
+    };
+    SpecError::new(e.path, message)
+}
+
+fn finite_in(path: &str, v: f64, lo: f64, hi: f64, what: &str) -> Result<(), SpecError> {
+    if v.is_finite() && v >= lo && v <= hi {
+        Ok(())
+    } else {
+        Err(SpecError::new(
+            path,
+            format!("{v} is outside the allowed range {what}"),
+        ))
+    }
+}
+
+fn needs_wavelength(spec: &Spec) -> bool {
+    let named = |m: &MaterialSpec| matches!(m, MaterialSpec::Name(_));
+    spec.layers
+        .iter()
+        .any(|l| matches!(l.scatterer, ScattererSpec::Mie(_)))
+        || matches!(&spec.base, BaseSpec::Fresnel { material, .. } if named(material))
+}
+
+/// Check every range; the error names the JSON path.
+pub fn validate(spec: &Spec) -> Result<(), SpecError> {
+    if spec.layers.is_empty() {
+        return Err(SpecError::new("layers", "at least one layer is required"));
+    }
+    let n_layers = spec.layers.len();
+    for (i, layer) in spec.layers.iter().enumerate() {
+        let p = format!("layers[{i}]");
+        match &layer.optical_thickness {
+            ThicknessSpec::Number(t) => finite_in(
+                &format!("{p}.optical_thickness"),
+                *t,
+                0.0,
+                1e12,
+                R_THICKNESS,
+            )?,
+            ThicknessSpec::Word(w) => {
+                if w != "infinite" {
+                    return Err(SpecError::new(
+                        format!("{p}.optical_thickness"),
+                        format!("\"{w}\" is not allowed: give a number ≥ 0 or \"infinite\""),
+                    ));
+                }
+                if i + 1 != n_layers {
+                    return Err(SpecError::new(
+                        format!("{p}.optical_thickness"),
+                        "only the last layer may be \"infinite\"",
+                    ));
+                }
+            }
+        }
+        let sp = format!("{p}.scatterer");
+        match &layer.scatterer {
+            ScattererSpec::Mie(m) => {
+                let mp = format!("{sp}.mie");
+                validate_material(&format!("{mp}.material"), &m.material)?;
+                finite_in(
+                    &format!("{mp}.host_index"),
+                    m.host_index,
+                    1.0,
+                    10.0,
+                    R_INDEX_REAL,
+                )?;
+                match (&m.radius_um, &m.size_distribution) {
+                    (Some(r), None) => {
+                        finite_in(&format!("{mp}.radius_um"), *r, 1e-6, 1e4, R_RADIUS)?
+                    }
+                    (
+                        None,
+                        Some(
+                            d @ SizeDistributionSpec::Lognormal {
+                                r_g_um, sigma_g, ..
+                            },
+                        ),
+                    ) => {
+                        let q = format!("{mp}.size_distribution.lognormal");
+                        validate_radius_limits(&q, d)?;
+                        finite_in(&format!("{q}.r_g_um"), *r_g_um, 1e-6, 1e4, R_RADIUS)?;
+                        finite_in(&format!("{q}.sigma_g"), *sigma_g, 1.0001, 5.0, R_SIGMA_G)?;
+                    }
+                    (
+                        None,
+                        Some(
+                            d @ SizeDistributionSpec::Gamma {
+                                r_eff_um, v_eff, ..
+                            },
+                        ),
+                    ) => {
+                        let q = format!("{mp}.size_distribution.gamma");
+                        validate_radius_limits(&q, d)?;
+                        finite_in(&format!("{q}.r_eff_um"), *r_eff_um, 1e-6, 1e4, R_RADIUS)?;
+                        finite_in(&format!("{q}.v_eff"), *v_eff, 1e-4, 0.49, R_V_EFF)?;
+                    }
+                    (Some(_), Some(_)) => {
+                        return Err(SpecError::new(
+                            mp,
+                            "give either radius_um or size_distribution, not both",
+                        ));
+                    }
+                    (None, None) => {
+                        return Err(SpecError::new(
+                            mp,
+                            "missing field: radius_um or size_distribution is required",
+                        ));
+                    }
+                }
+            }
+            ScattererSpec::Expansion(e) => {
+                let ep = format!("{sp}.expansion");
+                finite_in(&format!("{ep}.albedo"), e.albedo, 0.0, 1.0, R_UNIT)?;
+                if e.beta.is_empty() {
+                    return Err(SpecError::new(
+                        format!("{ep}.beta"),
+                        "at least beta_0 = 1 is required",
+                    ));
+                }
+                if (e.beta[0] - 1.0).abs() > 1e-6 {
+                    return Err(SpecError::new(
+                        format!("{ep}.beta[0]"),
+                        format!("{} must be 1 (normalised phase function)", e.beta[0]),
+                    ));
+                }
+                for (name, v) in [
+                    ("beta", &e.beta),
+                    ("alpha", &e.alpha),
+                    ("zeta", &e.zeta),
+                    ("delta", &e.delta),
+                    ("gamma", &e.gamma),
+                    ("epsilon", &e.epsilon),
+                ] {
+                    if v.len() > 100_000 {
+                        return Err(SpecError::new(
+                            format!("{ep}.{name}"),
+                            "at most 100000 terms",
+                        ));
+                    }
+                    for (l, x) in v.iter().enumerate() {
+                        if !x.is_finite() || x.abs() > 1e6 {
+                            return Err(SpecError::new(
+                                format!("{ep}.{name}[{l}]"),
+                                format!("{x} is outside the allowed range: {R_COEFFICIENT}"),
+                            ));
+                        }
+                    }
+                }
+            }
+            ScattererSpec::Rayleigh {
+                albedo,
+                depolarization,
+            } => {
+                finite_in(&format!("{sp}.rayleigh.albedo"), *albedo, 0.0, 1.0, R_UNIT)?;
+                finite_in(
+                    &format!("{sp}.rayleigh.depolarization"),
+                    *depolarization,
+                    0.0,
+                    0.99,
+                    R_DEPOLARIZATION,
+                )?;
+            }
+            ScattererSpec::HenyeyGreenstein { albedo, g } => {
+                finite_in(
+                    &format!("{sp}.henyey_greenstein.albedo"),
+                    *albedo,
+                    0.0,
+                    1.0,
+                    R_UNIT,
+                )?;
+                finite_in(&format!("{sp}.henyey_greenstein.g"), *g, -0.999, 0.999, R_G)?;
+            }
+        }
+    }
+    match &spec.base {
+        BaseSpec::Black => {}
+        BaseSpec::Lambertian { albedo } => {
+            finite_in("base.lambertian.albedo", *albedo, 0.0, 1.0, R_UNIT)?
+        }
+        BaseSpec::Fresnel {
+            material,
+            ambient_index,
+        } => {
+            validate_material("base.fresnel.material", material)?;
+            if let Some(a) = ambient_index {
+                finite_in("base.fresnel.ambient_index", *a, 1.0, 10.0, R_INDEX_REAL)?;
+            }
+        }
+    }
+    match &spec.wavelengths_nm {
+        Some(w) => {
+            if w.is_empty() || w.len() > 1000 {
+                return Err(SpecError::new(
+                    "wavelengths_nm",
+                    "give between 1 and 1000 wavelengths",
+                ));
+            }
+            for (i, x) in w.iter().enumerate() {
+                finite_in(
+                    &format!("wavelengths_nm[{i}]"),
+                    *x,
+                    100.0,
+                    100_000.0,
+                    R_WAVELENGTH,
+                )?;
+            }
+        }
+        None => {
+            if needs_wavelength(spec) {
+                return Err(SpecError::new(
+                    "wavelengths_nm",
+                    "missing field: required because a layer or the base depends on wavelength",
+                ));
+            }
+        }
+    }
+    if let Some(n) = spec.solver.streams
+        && (n == 0 || n > MAX_STREAMS)
+    {
+        return Err(SpecError::new(
+            "solver.streams",
+            format!("{n} is outside the allowed range [1, {MAX_STREAMS}]"),
+        ));
+    }
+    if let Some(t) = spec.solver.tolerance {
+        finite_in("solver.tolerance", t, 1e-10, 0.5, R_TOLERANCE)?;
+    }
+    // A tolerance next to explicit streams is ignored (docs/spec.md).
+    let tolerance = spec
+        .solver
+        .tolerance
+        .filter(|_| spec.solver.streams.is_none());
+    spec.needs.validate(tolerance)
+}
+
+fn validate_material(path: &str, m: &MaterialSpec) -> Result<(), SpecError> {
+    match m {
+        MaterialSpec::Name(name) => {
+            if materials::find(name).is_err() {
+                return Err(SpecError::new(
+                    path,
+                    format!(
+                        "unknown material '{name}' (known: {})",
+                        materials::known_materials().join(", ")
+                    ),
+                ));
+            }
+            Ok(())
+        }
+        MaterialSpec::Index { n, k } => {
+            finite_in(&format!("{path}.n"), *n, 1e-6, 100.0, R_N)?;
+            finite_in(&format!("{path}.k"), *k, 0.0, 100.0, R_K)
+        }
+    }
+}
+
+/// `radius_min_um` / `radius_max_um` of a size distribution: both or
+/// neither, each in `[1e-6, 1e4]` µm, `min < max`.
+fn validate_radius_limits(q: &str, d: &SizeDistributionSpec) -> Result<(), SpecError> {
+    match d.radius_limits_um() {
+        (None, None) => Ok(()),
+        (Some(lo), Some(hi)) => {
+            finite_in(
+                &format!("{q}.radius_min_um"),
+                lo,
+                1e-6,
+                1e4,
+                "[1e-6, 1e4] µm",
+            )?;
+            finite_in(
+                &format!("{q}.radius_max_um"),
+                hi,
+                1e-6,
+                1e4,
+                "[1e-6, 1e4] µm",
+            )?;
+            if lo < hi {
+                Ok(())
+            } else {
+                Err(SpecError::new(
+                    format!("{q}.radius_max_um"),
+                    format!("must be greater than radius_min_um = {lo}"),
+                ))
+            }
+        }
+        (Some(_), None) => Err(SpecError::new(
+            format!("{q}.radius_max_um"),
+            "missing field: radius_min_um requires radius_max_um",
+        )),
+        (None, Some(_)) => Err(SpecError::new(
+            format!("{q}.radius_min_um"),
+            "missing field: radius_max_um requires radius_min_um",
+        )),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::material::parse;
+
+    #[test]
+    fn out_of_range_names_path_and_range() {
+        let e =
+            parse(r#"{"layers":[{"optical_thickness":-1,"scatterer":{"rayleigh":{"albedo":1}}}]}"#)
+                .unwrap_err();
+        assert_eq!(e.path, "layers[0].optical_thickness");
+        assert!(e.message.contains("[0, 1e12]"), "{e}");
+        let e = parse(r#"{"layers":[{"optical_thickness":1,"scatterer":{"henyey_greenstein":{"albedo":1.5,"g":0.5}}}]}"#)
+            .unwrap_err();
+        assert_eq!(e.path, "layers[0].scatterer.henyey_greenstein.albedo");
+    }
+
+    #[test]
+    fn infinite_only_last_and_wavelength_required() {
+        let e = parse(
+            r#"{"layers":[{"optical_thickness":"infinite","scatterer":{"rayleigh":{"albedo":1}}},
+                          {"optical_thickness":1,"scatterer":{"rayleigh":{"albedo":1}}}]}"#,
+        )
+        .unwrap_err();
+        assert_eq!(e.path, "layers[0].optical_thickness");
+        let e = parse(
+            r#"{"layers":[{"optical_thickness":1,"scatterer":{"mie":{"material":"TiO2","radius_um":0.2}}}]}"#,
+        )
+        .unwrap_err();
+        assert_eq!(e.path, "wavelengths_nm");
+    }
+
+    #[test]
+    fn unparsable_numbers_name_the_allowed_range() {
+        for (text, path, range) in [
+            (
+                r#"{"layers":[{"optical_thickness":NaN,"scatterer":{"rayleigh":{"albedo":1}}}]}"#,
+                "layers[0].optical_thickness",
+                R_THICKNESS,
+            ),
+            (
+                r#"{"layers":[{"optical_thickness":1,"scatterer":{"rayleigh":{"albedo":1e999}}}]}"#,
+                "layers[0].scatterer.rayleigh.albedo",
+                "[0, 1]",
+            ),
+            (
+                r#"{"layers":[{"optical_thickness":1,"scatterer":{"henyey_greenstein":{"albedo":1,"g":"x"}}}]}"#,
+                "layers[0].scatterer.henyey_greenstein.g",
+                "[-0.999, 0.999]",
+            ),
+            (
+                r#"{"layers":[{"optical_thickness":1,"scatterer":{"rayleigh":{"albedo":1}}}],"wavelengths_nm":[Infinity]}"#,
+                "wavelengths_nm[0]",
+                "[100, 100000] nm",
+            ),
+        ] {
+            let e = parse(text).unwrap_err();
+            assert_eq!(e.path, path, "{e}");
+            assert!(e.message.ends_with(&format!("allowed: {range}")), "{e}");
+        }
+    }
+}

@@ -1,0 +1,217 @@
+//! Lowering of one wavelength: the spec's layers, base and settings as the
+//! solver's [`Problem`] (docs/spec.md). Layer optics come from the
+//! scatterer as written (Rayleigh, Henyey–Greenstein, explicit Greek
+//! coefficients) or from Mie theory (`plan::mie`); a Fresnel base becomes
+//! the mirror Mueller matrix of `physics::fresnel`.
+
+use super::mie::mie_optics;
+use crate::material::{
+    BaseSpec, DEFAULT_STREAMS, MaterialSpec, ScattererSpec, Spec, SpecError, ThicknessSpec,
+};
+use crate::physics::expansion::GreekCoefficients;
+use crate::physics::{RefractiveIndex, fresnel, materials};
+use crate::solver::{self, Base, Layer, Problem, Settings, Thickness};
+use std::sync::Arc;
+
+pub(super) fn resolve_index(
+    path: &str,
+    m: &MaterialSpec,
+    wavelength_nm: Option<f64>,
+) -> Result<RefractiveIndex, SpecError> {
+    match m {
+        MaterialSpec::Index { n, k } => Ok(RefractiveIndex::new(*n, *k)),
+        MaterialSpec::Name(name) => {
+            let wl = wavelength_nm
+                .ok_or_else(|| SpecError::new("wavelengths_nm", "required for named materials"))?;
+            materials::refractive_index(name, wl).map_err(|e| SpecError::new(path, e.to_string()))
+        }
+    }
+}
+
+/// Zero-pad a coefficient array to `len`.
+fn padded(v: &[f64], len: usize) -> Vec<f64> {
+    let mut out = v.to_vec();
+    out.resize(len, 0.0);
+    out
+}
+
+/// Single-scattering albedo and Greek coefficients of one layer at one
+/// wavelength.
+pub fn layer_optics(
+    path: &str,
+    scatterer: &ScattererSpec,
+    wavelength_nm: Option<f64>,
+) -> Result<(f64, GreekCoefficients), SpecError> {
+    match scatterer {
+        ScattererSpec::Expansion(e) => {
+            let len = [&e.beta, &e.alpha, &e.zeta, &e.delta, &e.gamma, &e.epsilon]
+                .iter()
+                .map(|v| v.len())
+                .max()
+                .unwrap_or(1);
+            Ok((
+                e.albedo,
+                GreekCoefficients {
+                    beta: padded(&e.beta, len),
+                    alpha: padded(&e.alpha, len),
+                    zeta: padded(&e.zeta, len),
+                    delta: padded(&e.delta, len),
+                    gamma: padded(&e.gamma, len),
+                    epsilon: padded(&e.epsilon, len),
+                },
+            ))
+        }
+        ScattererSpec::Rayleigh {
+            albedo,
+            depolarization,
+        } => Ok((*albedo, GreekCoefficients::rayleigh(*depolarization))),
+        ScattererSpec::HenyeyGreenstein { albedo, g } => {
+            // Enough terms that the series tail is below 1e-12.
+            let l_max = if g.abs() < 1e-12 {
+                0
+            } else {
+                ((1e-12f64).ln() / g.abs().ln()).ceil().max(1.0) as usize
+            };
+            Ok((
+                *albedo,
+                GreekCoefficients::henyey_greenstein(*g, l_max.min(20_000)),
+            ))
+        }
+        ScattererSpec::Mie(m) => mie_optics(&format!("{path}.mie"), m, wavelength_nm),
+    }
+}
+
+/// The ambient (real) and base (complex) refractive indices of a Fresnel
+/// base at one wavelength, validated; `None` for other bases. The ambient
+/// index defaults to the host of the last layer's Mie particles, else 1.
+pub fn fresnel_indices(
+    spec: &Spec,
+    wavelength_nm: Option<f64>,
+) -> Result<Option<(f64, RefractiveIndex)>, SpecError> {
+    let BaseSpec::Fresnel {
+        material,
+        ambient_index,
+    } = &spec.base
+    else {
+        return Ok(None);
+    };
+    let n2 = resolve_index("base.fresnel.material", material, wavelength_nm)?;
+    let n1 = ambient_index.unwrap_or_else(|| match spec.layers.last().map(|l| &l.scatterer) {
+        Some(ScattererSpec::Mie(m)) => m.host_index,
+        _ => 1.0,
+    });
+    fresnel::mueller(n1, n2, 0.5).map_err(|e| SpecError::new("base.fresnel", e.to_string()))?;
+    Ok(Some((n1, n2)))
+}
+
+/// The Fresnel reflection Mueller matrix of a mirror base as a function of
+/// `μ` (indices validated by [`fresnel_indices`], so it cannot fail).
+pub fn fresnel_mirror(n1: f64, n2: RefractiveIndex) -> solver::truncation::MirrorFn {
+    Arc::new(move |mu: f64| fresnel::mueller(n1, n2, mu.clamp(0.0, 1.0)).unwrap_or([[0.0; 4]; 4]))
+}
+
+/// The solver problem at one wavelength (`None` for a wavelength-free spec).
+pub fn problem(spec: &Spec, wavelength_nm: Option<f64>) -> Result<Problem, SpecError> {
+    let mut layers = Vec::with_capacity(spec.layers.len());
+    for (i, l) in spec.layers.iter().enumerate() {
+        let path = format!("layers[{i}].scatterer");
+        let (albedo, coef) = layer_optics(&path, &l.scatterer, wavelength_nm)?;
+        let thickness = match l.optical_thickness {
+            ThicknessSpec::Number(t) => Thickness::Finite(t),
+            ThicknessSpec::Word(_) => Thickness::Infinite,
+        };
+        layers.push(Layer {
+            thickness,
+            albedo,
+            coef,
+        });
+    }
+    let base = match &spec.base {
+        BaseSpec::Black => Base::Black,
+        BaseSpec::Lambertian { albedo } => Base::Lambertian { albedo: *albedo },
+        BaseSpec::Fresnel { .. } => {
+            let (n1, n2) =
+                fresnel_indices(spec, wavelength_nm)?.expect("a Fresnel base has indices");
+            Base::Mirror {
+                mueller: fresnel_mirror(n1, n2),
+            }
+        }
+    };
+    Ok(Problem {
+        layers,
+        base,
+        settings: settings(spec),
+    })
+}
+
+/// The solver settings of a spec (the same at every wavelength).
+pub fn settings(spec: &Spec) -> Settings {
+    Settings {
+        streams: spec.solver.streams.unwrap_or(DEFAULT_STREAMS),
+        polarized: spec.solver.polarized,
+        secondary_scattering: spec.solver.secondary_scattering,
+        max_order: spec.needs.max_order(),
+        ..Settings::default()
+    }
+}
+
+/// How the number of streams is chosen.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum StreamPolicy {
+    /// Exactly this many streams (given, or the default).
+    Fixed(usize),
+    /// The cheapest power of two up to [`crate::material::MAX_STREAMS`] meeting this
+    /// estimated relative error of f11.
+    Tolerance(f64),
+}
+
+/// The stream policy of a spec: explicit streams win over a tolerance.
+pub fn stream_policy(spec: &Spec) -> StreamPolicy {
+    match (spec.solver.streams, spec.solver.tolerance) {
+        (Some(n), _) => StreamPolicy::Fixed(n),
+        (None, Some(t)) => StreamPolicy::Tolerance(t),
+        (None, None) => StreamPolicy::Fixed(DEFAULT_STREAMS),
+    }
+}
+
+/// The wavelengths to solve: the listed ones, or one wavelength-free run.
+pub fn wavelengths(spec: &Spec) -> Vec<Option<f64>> {
+    match &spec.wavelengths_nm {
+        Some(w) => w.iter().map(|&x| Some(x)).collect(),
+        None => vec![None],
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::material::canonical::canonical_json;
+    use crate::material::parse;
+
+    /// The canonical form writes the stream count the solver is given when
+    /// the spec names neither `streams` nor `tolerance`.
+    #[test]
+    fn the_canonical_default_streams_are_the_solved_ones() {
+        let s =
+            parse(r#"{"layers":[{"optical_thickness":1,"scatterer":{"rayleigh":{"albedo":1}}}]}"#)
+                .unwrap();
+        let streams = problem(&s, None).unwrap().settings.streams;
+        assert_eq!(streams, DEFAULT_STREAMS);
+        assert_eq!(stream_policy(&s), StreamPolicy::Fixed(streams));
+        assert!(canonical_json(&s).contains(&format!(r#""streams":{streams}"#)));
+    }
+
+    /// `solver.secondary_scattering` reaches the solver's settings.
+    #[test]
+    fn secondary_scattering_reaches_the_settings() {
+        let layers = r#""wavelengths_nm":[550],"layers":[{"optical_thickness":1,"scatterer":{"mie":{"material":{"n":1.5,"k":0.001},"radius_um":3.0}}}]"#;
+        let on = parse(&format!("{{{layers}}}")).unwrap();
+        let off = parse(&format!(
+            r#"{{{layers},"solver":{{"secondary_scattering":false}}}}"#
+        ))
+        .unwrap();
+        let settings = |s: &Spec| problem(s, Some(550.0)).unwrap().settings;
+        assert!(settings(&on).secondary_scattering);
+        assert!(!settings(&off).secondary_scattering);
+    }
+}

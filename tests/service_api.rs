@@ -176,7 +176,10 @@ async fn concurrent_identical_submissions_share_one_solve() {
     assert_eq!(ids.len(), 1);
     let id = ids.into_iter().next().unwrap();
     wait_done(&c, &s, &id).await;
-    assert_eq!(metric(&c, &s, "polbrdf_solves_started_total").await, 1.0);
+    // One job: its two wavelengths solved once each (the counter counts
+    // per-wavelength solves), one result.
+    assert_eq!(metric(&c, &s, "polbrdf_solves_started_total").await, 2.0);
+    assert_eq!(metric(&c, &s, "polbrdf_solves_succeeded_total").await, 1.0);
     assert_eq!(metric(&c, &s, "polbrdf_cache_misses_total").await, 1.0);
     let joined = metric(&c, &s, "polbrdf_jobs_joined_total").await;
     let hits = metric(&c, &s, "polbrdf_cache_hits_total").await;

@@ -15,6 +15,7 @@
 //! the file helpers in [`format`] and [`export`] is pure.
 
 pub mod angles;
+mod assemble;
 pub mod export;
 pub mod format;
 pub mod frames;

@@ -112,6 +112,12 @@ pub struct BrdfResource {
     pub finished_at: Option<String>,
     /// Related resources.
     pub links: Links,
+    /// In the answer to `POST /v1/brdfs` only: the ids of the cached
+    /// per-wavelength results this result was assembled from, with no
+    /// solve (`[]` when the id itself was cached; docs/service.md,
+    /// "Per-wavelength results").
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub covered_by: Option<Vec<String>>,
 }
 
 impl BrdfResource {
@@ -138,6 +144,7 @@ impl BrdfResource {
             updated_at: rfc3339(row.updated_at),
             finished_at: row.finished_at.map(rfc3339),
             links: Links::of(&row.id),
+            covered_by: None,
         }
     }
 }
@@ -151,6 +158,10 @@ pub struct Accepted {
     pub status: JobStatus,
     /// Related resources.
     pub links: Links,
+    /// The ids of the cached per-wavelength results the job reuses: only
+    /// the other wavelengths are solved (docs/service.md, "Per-wavelength
+    /// results").
+    pub covered_by: Vec<String>,
 }
 
 /// Check the service caps (`--max-streams`, `--max-layers`,
@@ -292,17 +303,24 @@ pub async fn create_brdf(
     let (canonical_json, id) = plan::id_of_spec(&spec);
     tracing::debug!(%id, "submission");
     match state.0.jobs.submit(&spec, &canonical_json, &id).await? {
-        Submission::Cached(row) => {
-            let mut res = Json(BrdfResource::of(&row)).into_response();
+        Submission::Cached { row, covered_by } => {
+            let mut resource = BrdfResource::of(&row);
+            resource.covered_by = Some(covered_by);
+            let mut res = Json(resource).into_response();
             res.headers_mut()
                 .insert(header::CONTENT_LOCATION, location(&row.id));
             Ok(res)
         }
-        Submission::Pending { id, status } => {
+        Submission::Pending {
+            id,
+            status,
+            covered_by,
+        } => {
             let body = Accepted {
                 links: Links::of(&id),
                 status: status.into(),
                 id,
+                covered_by,
             };
             let loc = location(&body.id);
             let mut res = (StatusCode::ACCEPTED, Json(body)).into_response();

@@ -69,7 +69,7 @@ pub struct Metrics {
     pub joined: AtomicU64,
     /// POSTs refused because the queue was full.
     pub rejected: AtomicU64,
-    /// Solves started.
+    /// Per-wavelength solves started.
     pub solves_started: AtomicU64,
     /// Solves that produced a result.
     pub solves_succeeded: AtomicU64,
@@ -206,7 +206,7 @@ impl Metrics {
         counter(
             &mut out,
             "polbrdf_solves_started_total",
-            "Solves started.",
+            "Per-wavelength solves started (a wavelength read from the cache is not one).",
             load(&self.solves_started),
         );
         counter(

@@ -16,6 +16,13 @@
 //!   one decision (a per-id single-flight cell): the first looks the id up
 //!   and enqueues it if needed, the others wait for that decision and join
 //!   the same job. A job stays joinable until its row is final.
+//! * **Per-wavelength results.** A request for several wavelengths is made
+//!   of one-wavelength requests (`plan::wavelength_parts`), each stored as a
+//!   result of its own under its id. A job reads the parts that are cached
+//!   and solves only the others ([`result::solve_parts`]); a request whose
+//!   parts are all cached is assembled at submission, with no solve, and
+//!   answered as a cache hit naming them (`covered_by`).
+//!   `polbrdf_solves_started_total` counts per-wavelength solves.
 //! * **Bounded.** At most `--max-queue` jobs wait for a worker; beyond that
 //!   submissions are refused ([`JobError::QueueFull`], HTTP 503).
 //! * **Graceful shutdown** ([`Jobs::shutdown`]): jobs not yet started stay
@@ -24,6 +31,7 @@
 
 pub mod failure;
 pub mod metrics;
+mod parts;
 pub mod result;
 
 pub use failure::{FailureRecord, JobFailure};
@@ -32,7 +40,8 @@ pub use metrics::{Gauges, Metrics};
 use crate::material::{self, Spec};
 use crate::plan;
 use crate::storage::{BlobStore, Index, JobRow, Status, StorageError, now_ms};
-use result::SolveFailure;
+use parts::{StoredPart, store_part};
+use result::{PartInput, SolveFailure};
 use std::collections::HashMap;
 use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::sync::atomic::{AtomicBool, AtomicU8, AtomicUsize, Ordering};
@@ -82,20 +91,28 @@ impl From<StorageError> for JobError {
 pub enum Submission {
     /// The id is final in the index (done with its blob present, or failed
     /// deterministically).
-    Cached(Box<JobRow>),
+    Cached {
+        /// The row.
+        row: Box<JobRow>,
+        /// The per-wavelength results it was assembled from now (empty
+        /// when the id itself was cached).
+        covered_by: Vec<String>,
+    },
     /// The job is queued or running (started now or joined).
     Pending {
         /// Spec id.
         id: String,
         /// `queued` or `running`.
         status: Status,
+        /// The per-wavelength results the job reuses instead of solving.
+        covered_by: Vec<String>,
     },
 }
 
 #[derive(Clone, Debug)]
 enum Decision {
-    Cached(Box<JobRow>),
-    Enqueued,
+    Cached(Box<JobRow>, Vec<String>),
+    Enqueued(Vec<String>),
 }
 
 const QUEUED: u8 = 0;
@@ -121,6 +138,11 @@ impl Flight {
 /// Events from a solve to its async task.
 enum Event {
     Started,
+    /// A wavelength's solve starts (`polbrdf_solves_started_total`).
+    SolveStarted,
+    /// A per-wavelength part is solved and its blob stored: record its row
+    /// now, so that it survives a later failure or a restart.
+    PartStored(StoredPart),
     Wavelength {
         done: usize,
         total: usize,
@@ -219,10 +241,22 @@ impl Jobs {
                 }
             };
             self.index.requeue(&row.id, now).await?;
+            // Its wavelengths cached meanwhile (or by the run that stopped)
+            // are read, not solved again.
+            let parts = match self.part_inputs(&spec).await {
+                Ok((parts, _, _)) => parts,
+                Err(e) => {
+                    tracing::warn!(id = %row.id, error = %e, "cached wavelengths unreadable; solving all");
+                    plan::wavelength_parts(&spec)
+                        .into_iter()
+                        .map(|part| PartInput { part, cached: None })
+                        .collect()
+                }
+            };
             let flight = Arc::new(Flight::new());
             flight
                 .decided
-                .set(Ok(Decision::Enqueued))
+                .set(Ok(Decision::Enqueued(Vec::new())))
                 .expect("fresh cell");
             self.flights
                 .lock()
@@ -230,7 +264,8 @@ impl Jobs {
                 .insert(row.id.clone(), flight.clone());
             self.queued.fetch_add(1, Ordering::SeqCst);
             tracing::info!(id = %row.id, attempts = row.attempts, "job re-queued at start");
-            self.spawn(row.id.clone(), spec, flight);
+            let canonical = row.spec.clone();
+            self.spawn(row.id.clone(), spec, canonical, parts, flight);
         }
         Ok(())
     }
@@ -294,32 +329,34 @@ impl Jobs {
             })
             .await
             .clone();
-        if !matches!(decision, Ok(Decision::Enqueued)) {
+        if !matches!(decision, Ok(Decision::Enqueued(_))) {
             self.forget(id, &flight);
         }
         match decision? {
-            Decision::Cached(row) => {
+            Decision::Cached(row, covered_by) => {
                 if !leader {
                     self.metrics.cache_hits.fetch_add(1, Ordering::Relaxed);
                 }
-                Ok(Submission::Cached(row))
+                Ok(Submission::Cached { row, covered_by })
             }
-            Decision::Enqueued => {
+            Decision::Enqueued(covered_by) => {
                 if !leader {
                     self.metrics.joined.fetch_add(1, Ordering::Relaxed);
                 }
+                let pending = |status| Submission::Pending {
+                    id: id.to_string(),
+                    status,
+                    covered_by: covered_by.clone(),
+                };
                 match flight.state.load(Ordering::SeqCst) {
-                    QUEUED => Ok(Submission::Pending {
-                        id: id.to_string(),
-                        status: Status::Queued,
-                    }),
-                    RUNNING => Ok(Submission::Pending {
-                        id: id.to_string(),
-                        status: Status::Running,
-                    }),
+                    QUEUED => Ok(pending(Status::Queued)),
+                    RUNNING => Ok(pending(Status::Running)),
                     // Finished while we joined: the row is final.
                     _ => match self.index.get(id).await? {
-                        Some(row) => Ok(Submission::Cached(Box::new(row))),
+                        Some(row) => Ok(Submission::Cached {
+                            row: Box::new(row),
+                            covered_by,
+                        }),
                         None => Err(JobError::Storage(format!("row {id} vanished"))),
                     },
                 }
@@ -354,16 +391,35 @@ impl Jobs {
                     };
                     if present {
                         self.metrics.cache_hits.fetch_add(1, Ordering::Relaxed);
-                        return Ok(Decision::Cached(Box::new(row)));
+                        return Ok(Decision::Cached(Box::new(row), Vec::new()));
                     }
                     self.metrics.blobs_invalid.fetch_add(1, Ordering::Relaxed);
                     tracing::warn!(id, "result blob missing; solving again");
                 }
                 Status::Failed if !is_retryable(&row) => {
                     self.metrics.cache_hits.fetch_add(1, Ordering::Relaxed);
-                    return Ok(Decision::Cached(Box::new(row)));
+                    return Ok(Decision::Cached(Box::new(row), Vec::new()));
                 }
                 _ => {}
+            }
+        }
+        let (mut parts, walls, mut covered_by) = self.part_inputs(spec).await?;
+        if !parts.is_empty() && covered_by.len() == parts.len() {
+            match self.assemble_now(canonical, id, &parts, &walls).await {
+                Ok(row) => {
+                    self.metrics.cache_hits.fetch_add(1, Ordering::Relaxed);
+                    tracing::info!(id, parts = parts.len(), "assembled from cached wavelengths");
+                    return Ok(Decision::Cached(Box::new(row), covered_by));
+                }
+                // Not expected (the parts are results of one request);
+                // solve them again rather than fail the request.
+                Err(e) => {
+                    tracing::warn!(id, error = %e, "cached wavelengths do not assemble; solving");
+                    for p in &mut parts {
+                        p.cached = None;
+                    }
+                    covered_by.clear();
+                }
             }
         }
         self.metrics.cache_misses.fetch_add(1, Ordering::Relaxed);
@@ -387,9 +443,15 @@ impl Jobs {
             self.queued.fetch_sub(1, Ordering::SeqCst);
             return Err(e.into());
         }
-        tracing::info!(id, wavelengths, "job queued");
-        self.spawn(id.to_string(), spec.clone(), flight);
-        Ok(Decision::Enqueued)
+        tracing::info!(id, wavelengths, reused = covered_by.len(), "job queued");
+        self.spawn(
+            id.to_string(),
+            spec.clone(),
+            canonical.to_string(),
+            parts,
+            flight,
+        );
+        Ok(Decision::Enqueued(covered_by))
     }
 
     /// Remove the flight of `id` if it is still this one.
@@ -429,7 +491,14 @@ impl Jobs {
         Ok(bytes)
     }
 
-    fn spawn(self: &Arc<Self>, id: String, spec: Spec, flight: Arc<Flight>) {
+    fn spawn(
+        self: &Arc<Self>,
+        id: String,
+        spec: Spec,
+        canonical: String,
+        parts: Vec<PartInput>,
+        flight: Arc<Flight>,
+    ) {
         let (done_tx, done_rx) = oneshot::channel::<Outcome>();
         let (event_tx, event_rx) = mpsc::unbounded_channel::<Event>();
         // A root span: a job outlives the request that queued it.
@@ -439,6 +508,8 @@ impl Jobs {
         let stopping = self.stopping.clone();
         let solve_span = span.clone();
         let max_streams = self.config.max_streams;
+        let id_for_solve = id.clone();
+        let blobs_for_parts = self.blobs.clone();
         self.pool.spawn(move || {
             let _entered = solve_span.enter();
             if stopping.load(Ordering::SeqCst) {
@@ -458,10 +529,37 @@ impl Jobs {
                         let _ = progress_tx.send(Event::Progress(x));
                     }
                 };
-                result::solve(&spec, max_streams, &on_progress, &mut |done, total, ms| {
+                let mut on_wavelength = |done, total, ms| {
                     tracing::debug!(done, total, ms, "wavelength solved");
                     let _ = event_tx.send(Event::Wavelength { done, total, ms });
-                })
+                };
+                if parts.is_empty() {
+                    let _ = event_tx.send(Event::SolveStarted);
+                    return result::solve(&spec, max_streams, &on_progress, &mut on_wavelength);
+                }
+                let solve_tx = event_tx.clone();
+                let stored_tx = event_tx.clone();
+                result::solve_parts(
+                    &canonical,
+                    &id_for_solve,
+                    parts,
+                    max_streams,
+                    result::PartSinks {
+                        on_solve_start: &mut || {
+                            let _ = solve_tx.send(Event::SolveStarted);
+                        },
+                        on_part_solved: &mut |p| match store_part(&blobs_for_parts, p) {
+                            Ok(stored) => {
+                                let _ = stored_tx.send(Event::PartStored(stored));
+                            }
+                            // The request's own result is still stored; the
+                            // part is solved again when next needed.
+                            Err(e) => tracing::error!(error = %e, "storing a wavelength's result"),
+                        },
+                        on_progress: &on_progress,
+                        on_wavelength: &mut on_wavelength,
+                    },
+                )
             }));
             let outcome = match solved {
                 Ok(Ok(s)) => match blobs.put(&s.bytes) {
@@ -591,9 +689,26 @@ impl Jobs {
                 self.queued.fetch_sub(1, Ordering::SeqCst);
                 self.running.fetch_add(1, Ordering::SeqCst);
                 flight.state.store(RUNNING, Ordering::SeqCst);
-                self.metrics.solves_started.fetch_add(1, Ordering::Relaxed);
                 tracing::info!("job running");
                 self.index.start(id, now).await
+            }
+            Event::SolveStarted => {
+                self.metrics.solves_started.fetch_add(1, Ordering::Relaxed);
+                Ok(())
+            }
+            Event::PartStored(p) => {
+                self.index
+                    .record_done(
+                        &p.id,
+                        &p.canonical_json,
+                        &p.digest,
+                        p.size,
+                        result::MEDIA_TYPE,
+                        &p.wall_time_ms,
+                        p.error_estimate,
+                        now,
+                    )
+                    .await
             }
             Event::Wavelength { done, total, ms } => {
                 wall.push(ms);

@@ -15,7 +15,7 @@ use crate::brdf::format::{self, DataType};
 use crate::brdf::table::{self, BuildOptions};
 use crate::brdf::{BrdfError, Table};
 use crate::material::Spec;
-use crate::plan::Plan;
+use crate::plan::{Plan, WavelengthPart};
 use crate::solver;
 use std::time::Instant;
 
@@ -117,6 +117,110 @@ pub fn solve(
         wall_time_ms: wall,
         error_estimate,
     })
+}
+
+/// One wavelength of a multi-wavelength request (`plan::wavelength_parts`)
+/// and, when it is cached, the verified bytes of its stored result.
+pub struct PartInput {
+    /// The one-wavelength request.
+    pub part: WavelengthPart,
+    /// Its cached table bytes (in [`MEDIA_TYPE`]), or `None` to solve it.
+    pub cached: Option<Vec<u8>>,
+}
+
+/// A part solved by [`solve_parts`]: a result of its own, to be stored
+/// under its id.
+pub struct SolvedPart {
+    /// The one-wavelength request.
+    pub part: WavelengthPart,
+    /// Its result.
+    pub solved: Solved,
+}
+
+/// What [`solve_parts`] reports as it goes.
+pub struct PartSinks<'a> {
+    /// Before each part is solved (the service counts per-wavelength
+    /// solves with it).
+    pub on_solve_start: &'a mut dyn FnMut(),
+    /// As soon as a part is solved: a result of its own, kept even if a
+    /// later part fails.
+    pub on_part_solved: &'a mut dyn FnMut(SolvedPart),
+    /// Fraction of the request done (per batch of Fourier orders).
+    pub on_progress: &'a (dyn Fn(f64) + Sync),
+    /// `(done, total, ms)` after each part, read or solved.
+    pub on_wavelength: &'a mut dyn FnMut(usize, usize, f64),
+}
+
+/// Solve a multi-wavelength request through its one-wavelength parts:
+/// cached parts are read, the others solved ([`solve`], the same bytes a
+/// request for that wavelength alone stores), and the table assembled
+/// ([`Table::assemble`]) under the request's canonical spec and id.
+pub fn solve_parts(
+    spec_canonical_json: &str,
+    spec_id: &str,
+    parts: Vec<PartInput>,
+    max_streams: usize,
+    sinks: PartSinks,
+) -> Result<Solved, SolveFailure> {
+    let PartSinks {
+        on_solve_start,
+        on_part_solved,
+        on_progress,
+        on_wavelength,
+    } = sinks;
+    let total = parts.len();
+    let mut tables = Vec::with_capacity(total);
+    let mut wall = Vec::with_capacity(total);
+    for (k, input) in parts.into_iter().enumerate() {
+        let wl = Some(input.part.wavelength_nm);
+        let t0 = Instant::now();
+        let bytes = match input.cached {
+            Some(bytes) => bytes,
+            None => {
+                on_solve_start();
+                let progress = |x: f64| on_progress((k as f64 + x) / total as f64);
+                let s = solve(&input.part.spec, max_streams, &progress, &mut |_, _, _| {})?;
+                let bytes = s.bytes.clone();
+                on_part_solved(SolvedPart {
+                    part: input.part,
+                    solved: s,
+                });
+                bytes
+            }
+        };
+        tables.push(format::from_bytes(&bytes).map_err(|e| failure(e, wl))?);
+        let ms = t0.elapsed().as_secs_f64() * 1e3;
+        wall.push(ms);
+        on_wavelength(k + 1, total, ms);
+    }
+    let (bytes, error_estimate) = assemble(spec_canonical_json, spec_id, tables)?;
+    Ok(Solved {
+        bytes,
+        media_type: MEDIA_TYPE,
+        wall_time_ms: wall,
+        error_estimate,
+    })
+}
+
+/// The stored bytes of a request assembled from its parts' tables, and its
+/// largest error estimate.
+pub fn assemble(
+    spec_canonical_json: &str,
+    spec_id: &str,
+    tables: Vec<Table>,
+) -> Result<(Vec<u8>, Option<f64>), SolveFailure> {
+    let spec = serde_json::from_str(spec_canonical_json)
+        .map_err(|e| failure(BrdfError::Format(format!("canonical spec: {e}")), None))?;
+    let table = Table::assemble(spec, spec_id, tables).map_err(|e| failure(e, None))?;
+    let error_estimate = table
+        .metadata
+        .wavelengths
+        .iter()
+        .filter_map(|w| w.error_estimate.as_ref().map(|e| e.max_err_f11))
+        .filter(|e| e.is_finite())
+        .reduce(f64::max);
+    let bytes = format::to_bytes(&table, DATA_TYPE).map_err(|e| failure(e, None))?;
+    Ok((bytes, error_estimate))
 }
 
 /// Whose refusal a [`SolveFailure`] is.

@@ -14,11 +14,14 @@
 //! * [`check_solvable`] (`solvable`): what the physics and the solver would
 //!   refuse that the spec alone decides, checked before any solve;
 //! * [`id`]: the content address of the canonical form and the version
-//!   label of every stored result.
+//!   label of every stored result;
+//! * [`wavelength_parts`] (`parts`): the one-wavelength requests a
+//!   multi-wavelength request is made of, each a cached result of its own.
 
 pub mod id;
 mod lower;
 mod mie;
+mod parts;
 mod solvable;
 
 pub use id::{
@@ -29,6 +32,7 @@ pub use lower::{
     wavelengths,
 };
 pub use mie::max_size_parameter;
+pub use parts::{WavelengthPart, wavelength_parts};
 pub use solvable::check_solvable;
 
 use crate::material::needs::Needs;

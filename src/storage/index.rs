@@ -298,6 +298,47 @@ impl Index {
         Ok(())
     }
 
+    /// Record a result computed elsewhere (a per-wavelength part solved by
+    /// a multi-wavelength job, or a request assembled from cached parts) as
+    /// a done row: inserted, or an existing row that is not done made done.
+    /// A done row is left as it is (same id, same bytes).
+    #[allow(clippy::too_many_arguments)]
+    pub async fn record_done(
+        &self,
+        id: &str,
+        spec: &str,
+        digest: &str,
+        size: i64,
+        media_type: &str,
+        wall_time_ms: &[f64],
+        error_estimate: Option<f64>,
+        now: i64,
+    ) -> Result<(), StorageError> {
+        sqlx::query(
+            "INSERT INTO jobs (id, status, spec, wavelengths, progress, digest, size, media_type,
+               wall_time_ms, error_estimate, created_at, updated_at, finished_at, result_version)
+             VALUES (?1, 'done', ?2, ?3, 1, ?4, ?5, ?6, ?7, ?8, ?9, ?9, ?9, ?10)
+             ON CONFLICT (id) DO UPDATE SET
+               status = 'done', progress = 1, digest = ?4, size = ?5, media_type = ?6,
+               wall_time_ms = ?7, error_estimate = ?8, error = NULL, updated_at = ?9,
+               finished_at = ?9, result_version = ?10
+             WHERE jobs.status != 'done' OR jobs.result_version != ?10",
+        )
+        .bind(id)
+        .bind(spec)
+        .bind(wall_time_ms.len() as i64)
+        .bind(digest)
+        .bind(size)
+        .bind(media_type)
+        .bind(json_array(wall_time_ms))
+        .bind(error_estimate)
+        .bind(now)
+        .bind(result_version())
+        .execute(&self.pool)
+        .await?;
+        Ok(())
+    }
+
     /// The solve failed with this JSON problem.
     pub async fn fail(&self, id: &str, error_json: &str, now: i64) -> Result<(), StorageError> {
         sqlx::query(

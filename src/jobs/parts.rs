@@ -1,0 +1,130 @@
+//! Per-wavelength results in the queue (docs/service.md, "Per-wavelength
+//! results"): which wavelengths of a request are cached, a request
+//! assembled from them with no solve, and the parts a job solves stored as
+//! results of their own.
+
+use super::result::{self, PartInput, SolvedPart};
+use super::{JobError, Jobs};
+use crate::material::Spec;
+use crate::plan;
+use crate::storage::{BlobStore, JobRow, Status, now_ms};
+
+/// A cached per-wavelength result: its verified bytes and its solve time.
+pub(super) struct CachedPart {
+    bytes: Vec<u8>,
+    wall_time_ms: f64,
+}
+
+/// A part solved by a job, its blob stored: the row to record.
+pub(super) struct StoredPart {
+    pub(super) id: String,
+    pub(super) canonical_json: String,
+    pub(super) digest: String,
+    pub(super) size: i64,
+    pub(super) wall_time_ms: Vec<f64>,
+    pub(super) error_estimate: Option<f64>,
+}
+
+impl Jobs {
+    /// The one-wavelength parts of `spec` with the bytes of those already
+    /// cached, their solve times, and the ids of the cached ones.
+    pub(super) async fn part_inputs(
+        &self,
+        spec: &Spec,
+    ) -> Result<(Vec<PartInput>, Vec<f64>, Vec<String>), JobError> {
+        let mut parts = Vec::new();
+        let mut walls = Vec::new();
+        let mut covered_by = Vec::new();
+        for part in plan::wavelength_parts(spec) {
+            let cached = self.cached_part(&part.id).await?;
+            if cached.is_some() {
+                covered_by.push(part.id.clone());
+            }
+            walls.push(cached.as_ref().map_or(0.0, |c| c.wall_time_ms));
+            parts.push(PartInput {
+                cached: cached.map(|c| c.bytes),
+                part,
+            });
+        }
+        Ok((parts, walls, covered_by))
+    }
+
+    /// The verified bytes of the cached per-wavelength result `id`, if it
+    /// is done, current and in [`result::MEDIA_TYPE`] (else it is solved).
+    async fn cached_part(&self, id: &str) -> Result<Option<CachedPart>, JobError> {
+        let Some(row) = self.index.get(id).await? else {
+            return Ok(None);
+        };
+        let usable = row.status == Status::Done
+            && row.is_current()
+            && row.media_type.as_deref() == Some(result::MEDIA_TYPE);
+        let Some(digest) = row.digest.clone().filter(|_| usable) else {
+            return Ok(None);
+        };
+        let blobs = self.blobs.clone();
+        let bytes = tokio::task::spawn_blocking(move || blobs.get(&digest))
+            .await
+            .map_err(|e| JobError::Storage(e.to_string()))?
+            .map_err(|e| JobError::Storage(e.to_string()))?;
+        Ok(bytes.map(|bytes| CachedPart {
+            bytes,
+            wall_time_ms: row.wall_time_ms.first().copied().unwrap_or(0.0),
+        }))
+    }
+
+    /// Assemble request `id` from its cached parts, store it and record its
+    /// row as done (no solve).
+    pub(super) async fn assemble_now(
+        &self,
+        canonical: &str,
+        id: &str,
+        parts: &[PartInput],
+        walls: &[f64],
+    ) -> Result<JobRow, JobError> {
+        let bytes: Vec<Vec<u8>> = parts.iter().filter_map(|p| p.cached.clone()).collect();
+        let (blobs, c, i) = (self.blobs.clone(), canonical.to_string(), id.to_string());
+        let stored = tokio::task::spawn_blocking(move || {
+            let tables = bytes
+                .iter()
+                .map(|b| crate::brdf::format::from_bytes(b))
+                .collect::<Result<Vec<_>, _>>()
+                .map_err(|e| e.to_string())?;
+            let (bytes, estimate) = result::assemble(&c, &i, tables).map_err(|f| f.message)?;
+            let digest = blobs.put(&bytes).map_err(|e| e.to_string())?;
+            Ok::<_, String>((digest, bytes.len() as i64, estimate))
+        })
+        .await
+        .map_err(|e| JobError::Storage(e.to_string()))?
+        .map_err(JobError::Storage)?;
+        let (digest, size, estimate) = stored;
+        self.index
+            .record_done(
+                id,
+                canonical,
+                &digest,
+                size,
+                result::MEDIA_TYPE,
+                walls,
+                estimate,
+                now_ms(),
+            )
+            .await?;
+        self.index
+            .get(id)
+            .await?
+            .ok_or_else(|| JobError::Storage(format!("row {id} vanished")))
+    }
+}
+
+/// Store the blob of a part a job solved (on the solving thread).
+pub(super) fn store_part(blobs: &BlobStore, p: SolvedPart) -> Result<StoredPart, String> {
+    let digest = blobs.put(&p.solved.bytes).map_err(|e| e.to_string())?;
+    Ok(StoredPart {
+        id: p.part.id,
+        canonical_json: p.part.canonical_json,
+        digest,
+        size: p.solved.bytes.len() as i64,
+        wall_time_ms: p.solved.wall_time_ms,
+        error_estimate: p.solved.error_estimate,
+    })
+}

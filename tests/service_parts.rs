@@ -1,0 +1,125 @@
+//! Per-wavelength results (docs/service.md, "Per-wavelength results"),
+//! through the real server: a request for wavelengths [a, b, c] stores each
+//! wavelength as a result of its own; a request for a subset is answered
+//! from them at once (200, `covered_by`, no solve, counted through
+//! `/metrics`); a superset solves only the missing wavelength; and the
+//! assembled tables hold exactly what a solve of the whole request holds.
+
+mod service_support;
+
+use polbrdf::brdf::format;
+use polbrdf::brdf::table::{BuildOptions, Table};
+use polbrdf::material;
+use serde_json::Value;
+use service_support::*;
+
+/// TiO2 spheres over silver on a small grid (a solve per wavelength is a
+/// fraction of a second).
+fn spec(wavelengths: &str) -> String {
+    format!(
+        r#"{{"layers":[{{"optical_thickness":1,"scatterer":{{"mie":{{"material":"TiO2","radius_um":0.2}}}}}}],
+            "base":{{"fresnel":{{"material":"silver"}}}},"wavelengths_nm":{wavelengths},
+            "solver":{{"streams":6}},"needs":{{"error_estimate":false,"grid":{{"polar_nodes":8}}}}}}"#
+    )
+}
+
+async fn table(c: &reqwest::Client, s: &Server, id: &str) -> Table {
+    let r = c
+        .get(s.url(&format!("/v1/brdfs/{id}/table")))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(r.status(), 200);
+    format::from_bytes(&r.bytes().await.unwrap()).unwrap()
+}
+
+fn ids(v: &Value) -> Vec<String> {
+    v.as_array()
+        .unwrap_or_else(|| panic!("covered_by is not an array: {v}"))
+        .iter()
+        .map(|x| x.as_str().unwrap().to_string())
+        .collect()
+}
+
+/// The table a solve of the whole spec writes, with the timings the
+/// service leaves out of its bytes set to 0.
+fn solved_locally(text: &str) -> Table {
+    let mut t =
+        Table::from_spec_needs(&material::parse(text).unwrap(), &BuildOptions::default()).unwrap();
+    for w in &mut t.wavelengths {
+        w.wall_time_ms = 0.0;
+    }
+    for w in &mut t.metadata.wavelengths {
+        w.wall_time_ms = 0.0;
+    }
+    t
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn wavelengths_are_results_of_their_own() {
+    let dir = TempDir::new("parts");
+    let s = Server::start(&dir.0, &["--workers", "1"], &[]);
+    let c = client();
+    let solves = || metric(&c, &s, "polbrdf_solves_started_total");
+
+    // Three wavelengths: three solves, and the table of the whole request.
+    let (code, v, _) = post(&c, &s, &spec("[450, 550, 650]")).await;
+    assert_eq!(code, 202, "{v}");
+    assert_eq!(ids(&v["covered_by"]), Vec::<String>::new());
+    let whole_id = v["id"].as_str().unwrap().to_string();
+    wait_done(&c, &s, &whole_id).await;
+    assert_eq!(solves().await, 3.0);
+    let whole = table(&c, &s, &whole_id).await;
+    assert_eq!(whole, solved_locally(&spec("[450, 550, 650]")));
+
+    // One of them alone: its own cached result, no solve.
+    let (code, v, _) = post(&c, &s, &spec("[550]")).await;
+    assert_eq!(code, 200, "{v}");
+    assert_eq!(v["status"], "done");
+    let id_550 = v["id"].as_str().unwrap().to_string();
+    assert_eq!(solves().await, 3.0);
+    let one = table(&c, &s, &id_550).await;
+    assert_eq!(one.wavelengths, [whole.wavelengths[1].clone()]);
+    assert_eq!(one.metadata.spec_hash, id_550);
+
+    // Two of them: assembled at once from the cached wavelengths, no solve,
+    // naming them; its table is those two blocks of the whole table.
+    let (_, v450, _) = post(&c, &s, &spec("[450]")).await;
+    let (_, v650, _) = post(&c, &s, &spec("[650]")).await;
+    let (id_450, id_650) = (v450["id"].as_str().unwrap(), v650["id"].as_str().unwrap());
+    let (code, v, _) = post(&c, &s, &spec("[650, 450]")).await;
+    assert_eq!(code, 200, "{v}");
+    assert_eq!(v["status"], "done");
+    let mut covered = ids(&v["covered_by"]);
+    covered.sort();
+    let mut expected = vec![id_450.to_string(), id_650.to_string()];
+    expected.sort();
+    assert_eq!(covered, expected);
+    assert_eq!(solves().await, 3.0);
+    let pair_id = v["id"].as_str().unwrap().to_string();
+    let pair = table(&c, &s, &pair_id).await;
+    assert_eq!(
+        pair.wavelengths,
+        [whole.wavelengths[0].clone(), whole.wavelengths[2].clone()]
+    );
+    assert_eq!(pair, solved_locally(&spec("[650, 450]")));
+    // Its resource is a done result like any other.
+    let (code, r) = get_json(&c, &s, &format!("/v1/brdfs/{pair_id}")).await;
+    assert_eq!(code, 200);
+    assert_eq!(r["status"], "done");
+    assert_eq!(r["wavelengths"], 2);
+
+    // A superset: only the missing wavelength is solved.
+    let (code, v, _) = post(&c, &s, &spec("[450, 500, 550, 650]")).await;
+    assert_eq!(code, 202, "{v}");
+    assert_eq!(ids(&v["covered_by"]).len(), 3, "{v}");
+    let big_id = v["id"].as_str().unwrap().to_string();
+    wait_done(&c, &s, &big_id).await;
+    assert_eq!(solves().await, 4.0);
+    let big = table(&c, &s, &big_id).await;
+    assert_eq!(big, solved_locally(&spec("[450, 500, 550, 650]")));
+    // ... and 500 nm is now a result of its own.
+    let (code, _, _) = post(&c, &s, &spec("[500]")).await;
+    assert_eq!(code, 200);
+    assert_eq!(solves().await, 4.0);
+}

@@ -16,6 +16,18 @@ pub enum BenchCommand {
     Table(TableArgs),
     /// Time per Mie + expansion at several size parameters.
     Mie(MieBenchArgs),
+    /// The full request against each reduced request (`needs`, a subset of
+    /// the wavelengths, a looser tolerance) for the TiO2 layer of Collin et
+    /// al. 2014 over black and over silver, in one run
+    /// (docs/performance.md, "Reduced requests").
+    Needs(NeedsBenchArgs),
+}
+
+#[derive(Debug, Args)]
+pub struct NeedsBenchArgs {
+    /// Repetitions per request (the minimum time is reported).
+    #[arg(long, default_value_t = 3)]
+    repeat: usize,
 }
 
 #[derive(Debug, Args)]
@@ -52,7 +64,147 @@ pub fn run(cmd: &BenchCommand) -> Result<Value, String> {
     match cmd {
         BenchCommand::Table(a) => table(a),
         BenchCommand::Mie(a) => mie(a),
+        BenchCommand::Needs(a) => needs(a),
     }
+}
+
+/// `b` merged into `a` (objects key by key, anything else replaced).
+fn merge(a: &mut Value, b: &Value) {
+    match (a, b) {
+        (Value::Object(a), Value::Object(b)) => {
+            for (k, v) in b {
+                merge(a.entry(k.clone()).or_insert(Value::Null), v);
+            }
+        }
+        (a, b) => *a = b.clone(),
+    }
+}
+
+/// The requests of `polbrdf bench needs`: `(label, baseline label, patch
+/// of the seed's TiO2 spec)`. The baseline of each reduced request is the
+/// full request it is a part of.
+fn needs_requests() -> Vec<(&'static str, &'static str, Value)> {
+    let full = "full";
+    vec![
+        (full, full, json!({})),
+        (
+            "three wavelengths (450, 550, 650 nm)",
+            full,
+            json!({"wavelengths_nm": [450, 550, 650]}),
+        ),
+        (
+            "one wavelength of three",
+            "three wavelengths (450, 550, 650 nm)",
+            json!({}),
+        ),
+        (
+            "stokes: unpolarized_in",
+            full,
+            json!({"needs": {"stokes": "unpolarized_in"}}),
+        ),
+        (
+            "stokes: intensity",
+            full,
+            json!({"needs": {"stokes": "intensity"}}),
+        ),
+        (
+            "theta_i_deg: [0, 30, 60]",
+            full,
+            json!({"needs": {"theta_i_deg": [0, 30, 60]}}),
+        ),
+        (
+            "error_estimate: false",
+            full,
+            json!({"needs": {"error_estimate": false}}),
+        ),
+        (
+            "grid.polar_nodes: 16",
+            full,
+            json!({"needs": {"grid": {"polar_nodes": 16}}}),
+        ),
+        (
+            "grid.max_fourier_orders: 4",
+            full,
+            json!({"needs": {"grid": {"max_fourier_orders": 4}}}),
+        ),
+        (
+            "tolerance 1e-5",
+            "tolerance 1e-5",
+            json!({"solver": {"streams": null, "tolerance": 1e-5}}),
+        ),
+        (
+            "tolerance 1e-2",
+            "tolerance 1e-5",
+            json!({"solver": {"streams": null, "tolerance": 1e-2}}),
+        ),
+    ]
+}
+
+fn needs(a: &NeedsBenchArgs) -> Result<Value, String> {
+    use crate::brdf::format::{self, DataType};
+    use crate::brdf::table::{BuildOptions, Table};
+    let seed = json!({
+        "layers": [{"optical_thickness": 1.0,
+                    "scatterer": {"mie": {"material": "TiO2", "radius_um": 0.2, "host_index": 1.0}}}],
+        "wavelengths_nm": [550],
+        "solver": {"streams": 16, "polarized": true}
+    });
+    let mut out = serde_json::Map::new();
+    for (base_name, base) in [
+        ("black", json!("black")),
+        ("silver", json!({"fresnel": {"material": "silver"}})),
+    ] {
+        let mut rows: Vec<Value> = Vec::new();
+        let mut times = std::collections::HashMap::new();
+        for (label, baseline, patch) in needs_requests() {
+            let mut spec = seed.clone();
+            spec["base"] = base.clone();
+            merge(&mut spec, &patch);
+            if let Some(s) = spec["solver"].as_object_mut() {
+                s.retain(|_, v| !v.is_null());
+            }
+            let parsed = match crate::material::parse(&spec.to_string()) {
+                Ok(s) => s,
+                Err(e) => {
+                    rows.push(json!({"request": label, "refused": e.to_string()}));
+                    continue;
+                }
+            };
+            let mut best = f64::INFINITY;
+            let mut table = None;
+            for _ in 0..a.repeat.max(1) {
+                let t0 = Instant::now();
+                let t = Table::from_spec_needs(&parsed, &BuildOptions::default())
+                    .map_err(|e| format!("{label} over {base_name}: {e}"))?;
+                best = best.min(t0.elapsed().as_secs_f64() * 1e3);
+                table = Some(t);
+            }
+            let table = table.expect("at least one repetition");
+            let bytes = format::to_bytes(&table, DataType::F64)
+                .map_err(|e| e.to_string())?
+                .len();
+            times.insert(label, best);
+            let meta = &table.metadata.wavelengths;
+            let estimate = meta
+                .iter()
+                .filter_map(|w| w.error_estimate.as_ref().map(|e| e.max_err_f11))
+                .reduce(f64::max);
+            let interpolation = meta
+                .iter()
+                .filter_map(|w| w.interpolation_error)
+                .reduce(f64::max);
+            let streams: Vec<usize> = meta.iter().map(|w| w.streams).collect();
+            let speed_up = times.get(baseline).map(|t| t / best);
+            rows.push(json!({
+                "request": label, "baseline": baseline, "wall_time_ms": best,
+                "speed_up": speed_up, "table_bytes": bytes, "streams": streams,
+                "error_estimate": estimate, "interpolation_error": interpolation,
+            }));
+        }
+        out.insert(base_name.to_string(), Value::Array(rows));
+    }
+    out.insert("repeat".into(), json!(a.repeat));
+    Ok(Value::Object(out))
 }
 
 /// The table size of Collin et al. 2014 (Graphics Interface): 51 polar

@@ -123,3 +123,56 @@ async fn wavelengths_are_results_of_their_own() {
     assert_eq!(code, 200);
     assert_eq!(solves().await, 4.0);
 }
+
+/// A request that needs no error estimate is answered from the cached
+/// result of the same request with one (the same N-stream solve): 200,
+/// `covered_by` naming it, no solve; the numbers are those of a direct
+/// solve without the estimate (to round-off), and the table states no
+/// estimate.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_result_with_the_estimate_covers_a_request_without_it() {
+    let dir = TempDir::new("parts-cover");
+    let s = Server::start(&dir.0, &["--workers", "1"], &[]);
+    let c = client();
+    let solves = || metric(&c, &s, "polbrdf_solves_started_total");
+    let with = |wl: &str| spec(wl).replace(r#""error_estimate":false,"#, "");
+    assert!(!with("[550]").contains("error_estimate"));
+
+    let (code, v, _) = post(&c, &s, &with("[450, 550]")).await;
+    assert_eq!(code, 202, "{v}");
+    wait_done(&c, &s, v["id"].as_str().unwrap()).await;
+    assert_eq!(solves().await, 2.0);
+    let (_, v550, _) = post(&c, &s, &with("[550]")).await;
+    let (_, v450, _) = post(&c, &s, &with("[450]")).await;
+    let with_id = |v: &Value| v["id"].as_str().unwrap().to_string();
+
+    // [550] without the estimate: cut from [550] with it (and stored as a
+    // result of its own, which [450, 550] without the estimate then reads).
+    let mut reduced_550 = String::new();
+    for wl in ["[550]", "[450, 550]"] {
+        let (code, v, _) = post(&c, &s, &spec(wl)).await;
+        assert_eq!(code, 200, "{wl}: {v}");
+        let covering = if wl == "[550]" {
+            reduced_550 = with_id(&v);
+            vec![with_id(&v550)]
+        } else {
+            vec![with_id(&v450), reduced_550.clone()]
+        };
+        assert_eq!(ids(&v["covered_by"]), covering, "{wl}");
+        let served = table(&c, &s, v["id"].as_str().unwrap()).await;
+        assert_eq!(served.metadata.spec_hash, v["id"].as_str().unwrap());
+        let direct = solved_locally(&spec(wl));
+        assert_eq!(served.metadata.spec, direct.metadata.spec);
+        assert_eq!(served.metadata.wavelengths, direct.metadata.wavelengths);
+        for (a, b) in served.wavelengths.iter().zip(&direct.wavelengths) {
+            let scale = b.f.iter().fold(0.0_f64, |m, x| m.max(x.abs()));
+            let d =
+                a.f.iter()
+                    .zip(&b.f)
+                    .fold(0.0_f64, |m, (x, y)| m.max((x - y).abs()));
+            assert!(d <= 1e-12 * scale, "{wl}: {d:e} of {scale:e}");
+            assert_eq!(a.specular, b.specular);
+        }
+    }
+    assert_eq!(solves().await, 2.0, "the covered requests solved nothing");
+}

@@ -40,7 +40,7 @@ pub use metrics::{Gauges, Metrics};
 use crate::material::{self, Spec};
 use crate::plan;
 use crate::storage::{BlobStore, Index, JobRow, Status, StorageError, now_ms};
-use parts::{StoredPart, store_part};
+use parts::{CachedPart, StoredPart, store_part};
 use result::{PartInput, SolveFailure};
 use std::collections::HashMap;
 use std::panic::{AssertUnwindSafe, catch_unwind};
@@ -404,17 +404,42 @@ impl Jobs {
             }
         }
         let (mut parts, walls, mut covered_by) = self.part_inputs(spec).await?;
-        if !parts.is_empty() && covered_by.len() == parts.len() {
-            match self.assemble_now(canonical, id, &parts, &walls).await {
+        // What is cached is assembled now: every wavelength of a request
+        // (its parts), or a one-wavelength request covered by another.
+        let cached: Option<Vec<CachedPart>> = if parts.is_empty() {
+            self.cached_covering(spec, canonical, id)
+                .await?
+                .map(|c| vec![c])
+        } else if covered_by.len() == parts.len() {
+            Some(
+                parts
+                    .iter()
+                    .zip(&walls)
+                    .zip(&covered_by)
+                    .map(|((p, &wall_time_ms), cover)| CachedPart {
+                        bytes: p.cached.clone().expect("every part cached"),
+                        wall_time_ms,
+                        id: cover.clone(),
+                    })
+                    .collect(),
+            )
+        } else {
+            None
+        };
+        if let Some(cached) = cached {
+            let from: Vec<String> = cached.iter().map(|c| c.id.clone()).collect();
+            let walls: Vec<f64> = cached.iter().map(|c| c.wall_time_ms).collect();
+            let bytes = cached.into_iter().map(|c| c.bytes).collect();
+            match self.assemble_now(canonical, id, bytes, &walls).await {
                 Ok(row) => {
                     self.metrics.cache_hits.fetch_add(1, Ordering::Relaxed);
-                    tracing::info!(id, parts = parts.len(), "assembled from cached wavelengths");
-                    return Ok(Decision::Cached(Box::new(row), covered_by));
+                    tracing::info!(id, from = from.len(), "answered from cached results");
+                    return Ok(Decision::Cached(Box::new(row), from));
                 }
                 // Not expected (the parts are results of one request);
                 // solve them again rather than fail the request.
                 Err(e) => {
-                    tracing::warn!(id, error = %e, "cached wavelengths do not assemble; solving");
+                    tracing::warn!(id, error = %e, "cached results do not assemble; solving");
                     for p in &mut parts {
                         p.cached = None;
                     }

@@ -5,14 +5,18 @@
 
 use super::result::{self, PartInput, SolvedPart};
 use super::{JobError, Jobs};
+use crate::brdf::format;
 use crate::material::Spec;
 use crate::plan;
 use crate::storage::{BlobStore, JobRow, Status, now_ms};
 
-/// A cached per-wavelength result: its verified bytes and its solve time.
+/// A cached result a request (or one of its wavelengths) is answered
+/// from: its verified bytes (restricted to the request's needs), its solve
+/// time and the id of the result they were read from.
 pub(super) struct CachedPart {
-    bytes: Vec<u8>,
-    wall_time_ms: f64,
+    pub(super) bytes: Vec<u8>,
+    pub(super) wall_time_ms: f64,
+    pub(super) id: String,
 }
 
 /// A part solved by a job, its blob stored: the row to record.
@@ -36,9 +40,15 @@ impl Jobs {
         let mut walls = Vec::new();
         let mut covered_by = Vec::new();
         for part in plan::wavelength_parts(spec) {
-            let cached = self.cached_part(&part.id).await?;
-            if cached.is_some() {
-                covered_by.push(part.id.clone());
+            let cached = match self.cached_part(&part.id).await? {
+                Some(c) => Some(c),
+                None => {
+                    self.cached_covering(&part.spec, &part.canonical_json, &part.id)
+                        .await?
+                }
+            };
+            if let Some(c) = &cached {
+                covered_by.push(c.id.clone());
             }
             walls.push(cached.as_ref().map_or(0.0, |c| c.wall_time_ms));
             parts.push(PartInput {
@@ -69,7 +79,42 @@ impl Jobs {
         Ok(bytes.map(|bytes| CachedPart {
             bytes,
             wall_time_ms: row.wall_time_ms.first().copied().unwrap_or(0.0),
+            id: id.to_string(),
         }))
+    }
+
+    /// A cached result of another request that covers `spec`'s needs
+    /// (`plan::covering_requests`), cut to them under `spec`'s canonical
+    /// JSON and id (`brdf::Table::restricted`).
+    pub(super) async fn cached_covering(
+        &self,
+        spec: &Spec,
+        canonical: &str,
+        id: &str,
+    ) -> Result<Option<CachedPart>, JobError> {
+        for cover in plan::covering_requests(spec) {
+            let Some(found) = self.cached_part(&cover.id).await? else {
+                continue;
+            };
+            let (c, i, needs) = (canonical.to_string(), id.to_string(), spec.needs.clone());
+            let restricted = tokio::task::spawn_blocking(move || {
+                let table = format::from_bytes(&found.bytes).map_err(|e| e.to_string())?;
+                let spec = serde_json::from_str(&c).map_err(|e| e.to_string())?;
+                let table = table.restricted(spec, &i, &needs);
+                let bytes =
+                    format::to_bytes(&table, result::DATA_TYPE).map_err(|e| e.to_string())?;
+                Ok::<_, String>(CachedPart { bytes, ..found })
+            })
+            .await
+            .map_err(|e| JobError::Storage(e.to_string()))?;
+            match restricted {
+                Ok(part) => return Ok(Some(part)),
+                Err(e) => {
+                    tracing::warn!(cover = %cover.id, error = %e, "a covering result does not restrict")
+                }
+            }
+        }
+        Ok(None)
     }
 
     /// Assemble request `id` from its cached parts, store it and record its
@@ -78,15 +123,14 @@ impl Jobs {
         &self,
         canonical: &str,
         id: &str,
-        parts: &[PartInput],
+        bytes: Vec<Vec<u8>>,
         walls: &[f64],
     ) -> Result<JobRow, JobError> {
-        let bytes: Vec<Vec<u8>> = parts.iter().filter_map(|p| p.cached.clone()).collect();
         let (blobs, c, i) = (self.blobs.clone(), canonical.to_string(), id.to_string());
         let stored = tokio::task::spawn_blocking(move || {
             let tables = bytes
                 .iter()
-                .map(|b| crate::brdf::format::from_bytes(b))
+                .map(|b| format::from_bytes(b))
                 .collect::<Result<Vec<_>, _>>()
                 .map_err(|e| e.to_string())?;
             let (bytes, estimate) = result::assemble(&c, &i, tables).map_err(|f| f.message)?;

@@ -32,7 +32,7 @@ pub use lower::{
     wavelengths,
 };
 pub use mie::max_size_parameter;
-pub use parts::{WavelengthPart, wavelength_parts};
+pub use parts::{Covering, WavelengthPart, covering_requests, wavelength_parts};
 pub use solvable::check_solvable;
 
 use crate::material::needs::Needs;

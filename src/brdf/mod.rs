@@ -8,6 +8,8 @@
 //!   Stokes reference frames (conventions §5).
 //! * [`format`]: the binary table file (magic, version, SHA-256).
 //! * [`export`]: dense NumPy arrays, JSON point sets, CSV slices.
+//! * [`coverage`]: the part of a table a request needs (`needs.stokes`,
+//!   `needs.theta_i_deg`): elements and incident nodes kept, queries allowed.
 //! * [`angles`]: graphics angles ↔ solver quantities (conventions §5).
 //! * [`mitsuba`]: Mitsuba 3 `measured_polarized` tensor files (docs/mitsuba.md).
 //!
@@ -15,6 +17,7 @@
 //! the file helpers in [`format`] and [`export`] is pure.
 
 pub mod angles;
+pub mod coverage;
 pub mod export;
 pub mod format;
 pub mod frames;

@@ -27,7 +27,9 @@
 
 use super::BrdfError;
 use super::angles::{self, Vec3, dphi_prop_rad, mu_of_theta_deg};
+use super::coverage;
 use super::grid::{PolarGrid, STENCIL, Stencil};
+use crate::material::needs::{IncidentNeed, StokesNeed};
 use crate::material::{self, Spec};
 use crate::physics::RefractiveIndex;
 use crate::physics::stokes::{Mueller, mul, rotation};
@@ -94,16 +96,25 @@ pub enum Interpolant {
 pub struct WavelengthTable {
     /// Vacuum wavelength (nm); `None` for a wavelength-free spec.
     pub wavelength_nm: Option<f64>,
-    /// Stokes components per direction (4 polarized, 1 scalar).
+    /// Rows stored: outgoing Stokes components (4 polarized, 1 scalar or
+    /// `needs.stokes: "intensity"`).
     pub ns: usize,
-    /// Number of polar nodes `N`.
+    /// Columns stored: incident Stokes components (`ns`, or 1 for
+    /// `needs.stokes` other than full: column 0 only).
+    pub cols: usize,
+    /// Number of polar nodes `N` of the grid (outgoing axis).
     pub nodes: usize,
+    /// Grid nodes held on the incident axis, increasing (`0..N` unless
+    /// `needs.theta_i_deg`, [`super::coverage::incident_nodes`]).
+    pub incident: Vec<usize>,
     /// Number of Fourier orders `M` (`m = 0..M`).
     pub orders: usize,
     /// `f^m(μ_o, μ_i)` (1/sr), element `(p, q)` at
-    /// `(((m·N + o)·N + i)·ns + p)·ns + q`.
+    /// `(((m·N + o)·K + k)·ns + p)·cols + q` with `k` the position of the
+    /// incident node in [`WavelengthTable::incident`] (`K` of them).
     pub f: Vec<f64>,
-    /// `e^{−2τ/μ_i} M_F(μ_i)` per incident node (mirror bases), else `None`.
+    /// `e^{−2τ/μ_i} M_F(μ_i)` per held incident node (mirror bases), else
+    /// `None`; elements outside `ns × cols` are zero unless `cols = ns`.
     pub specular: Option<Vec<Mueller>>,
     /// Solver wall time for this wavelength (ms).
     pub wall_time_ms: f64,
@@ -231,6 +242,14 @@ pub struct Metadata {
     pub conventions: String,
     /// Per wavelength: orders and timings.
     pub wavelengths: Vec<WavelengthMeta>,
+    /// Which Mueller elements the table holds (`needs.stokes`; absent:
+    /// all of them). The binary layout says the same (`ns`, flag bit 2).
+    #[serde(default, skip_serializing_if = "StokesNeed::is_full")]
+    pub stokes: StokesNeed,
+    /// The incident polar angles the table may be evaluated at
+    /// (`needs.theta_i_deg`, normalized; absent: all).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub theta_i_deg: Option<IncidentNeed>,
 }
 
 /// A BRDF table: metadata, the polar grid and one block per wavelength
@@ -362,29 +381,21 @@ pub fn build_wavelength(
             )
         }
     };
-    let ns = refl.ns;
+    // Only the elements and incident nodes the request needs
+    // (`needs.stokes`, `needs.theta_i_deg`) are synthesized and stored.
+    let (rows, cols) = plan.needs.stokes.shape(refl.ns);
+    let incident = coverage::incident_nodes(grid, plan.needs.theta_i_deg.as_ref());
     let n = grid.len();
     let orders = refl.rho.len();
-    let mut f = vec![0.0; orders * n * n * ns * ns];
-    for (m, rho) in refl.rho.iter().enumerate() {
-        for o in 0..n {
-            for i in 0..n {
-                let inv = 1.0 / grid.mu[i];
-                let base = ((m * n + o) * n + i) * ns * ns;
-                for p in 0..ns {
-                    for q in 0..ns {
-                        f[base + p * ns + q] = rho[(o * ns + p, i * ns + q)] * inv;
-                    }
-                }
-            }
-        }
-    }
+    let f = coverage::synthesize(&refl, grid, rows, cols, &incident);
     let specular = match &problem.base {
         Base::Mirror { mueller } => Some(
-            grid.mu
+            incident
                 .iter()
-                .zip(&refl.direct)
-                .map(|(&mu, &e)| scale(&mueller(mu), e * e))
+                .map(|&i| {
+                    let e = refl.direct[i];
+                    coverage::keep(&scale(&mueller(grid.mu[i]), e * e), rows, cols)
+                })
                 .collect(),
         ),
         _ => None,
@@ -401,16 +412,30 @@ pub fn build_wavelength(
     };
     let block = WavelengthTable {
         wavelength_nm: wl,
-        ns,
+        ns: rows,
+        cols,
         nodes: n,
+        incident,
         orders,
         f,
         specular,
         wall_time_ms: t0.elapsed().as_secs_f64() * 1e3,
         correction,
     };
-    let interpolation_error =
-        (!probes.is_empty()).then(|| interpolation_error(&block, grid, &refl, &probes));
+    // Measured on f11 alone, from an f11 block on every incident node (the
+    // statement covers the grid, whatever part of it is stored).
+    let interpolation_error = (!probes.is_empty()).then(|| {
+        let f11 = WavelengthTable {
+            ns: 1,
+            cols: 1,
+            incident: (0..n).collect(),
+            f: coverage::synthesize(&refl, grid, 1, 1, &(0..n).collect::<Vec<_>>()),
+            specular: None,
+            correction: None,
+            ..block.clone_shape()
+        };
+        interpolation_error(&f11, grid, &refl, &probes)
+    });
     Ok(BuiltWavelength {
         block,
         streams,
@@ -472,11 +497,11 @@ fn interpolation_error(
     if f11_max > 0.0 { err / f11_max } else { 0.0 }
 }
 
-/// An `ns × ns` row-major block as a 4×4 matrix (zeros outside).
-fn unflatten(v: &[f64], ns: usize) -> Mueller {
+/// A `rows × cols` row-major block as a 4×4 matrix (zeros outside).
+fn unflatten(v: &[f64], rows: usize, cols: usize) -> Mueller {
     let mut c = [[0.0; 4]; 4];
-    for (p, row) in c.iter_mut().enumerate().take(ns) {
-        row[..ns].copy_from_slice(&v[p * ns..p * ns + ns]);
+    for (p, row) in c.iter_mut().enumerate().take(rows) {
+        row[..cols].copy_from_slice(&v[p * cols..p * cols + cols]);
     }
     c
 }
@@ -494,7 +519,9 @@ fn add_scaled(acc: &mut Mueller, m: &Mueller, a: f64) {
 }
 
 /// The Fourier sum (T1) of per-order coefficients `c[m]` at `dphi_prop`
-/// (radians); scalar coefficients (`ns = 1`) fill `[0][0]` only.
+/// (radians) over the first `ns` rows and columns; scalar coefficients
+/// (`ns = 1`) fill `[0][0]` only. Elements outside those stored are zero
+/// in `c` and stay zero.
 pub fn fourier_synthesis(c: &[Mueller], ns: usize, dphi_prop: f64) -> Mueller {
     let mut f = [[0.0; 4]; 4];
     for (m, cm) in c.iter().enumerate() {
@@ -516,16 +543,46 @@ pub fn fourier_synthesis(c: &[Mueller], ns: usize, dphi_prop: f64) -> Mueller {
 }
 
 impl WavelengthTable {
-    /// Offset of the `ns × ns` block `f^m(μ_o, μ_i)` in [`WavelengthTable::f`].
+    /// Offset of the `ns × cols` block `f^m(μ_o, μ_i)` in
+    /// [`WavelengthTable::f`], `i` a grid node held on the incident axis
+    /// (panics for one not held: callers check the coverage first,
+    /// [`Table::incident_theta`]).
     pub fn offset(&self, m: usize, o: usize, i: usize) -> usize {
-        ((m * self.nodes + o) * self.nodes + i) * self.ns * self.ns
+        let k = self.incident_position(i);
+        ((m * self.nodes + o) * self.incident.len() + k) * self.ns * self.cols
+    }
+
+    /// Position of grid node `i` in [`WavelengthTable::incident`].
+    pub fn incident_position(&self, i: usize) -> usize {
+        if self.incident.len() == self.nodes {
+            return i;
+        }
+        self.incident
+            .binary_search(&i)
+            .unwrap_or_else(|_| panic!("incident node {i} is not held by this table"))
+    }
+
+    /// Does this block hold every incident node and every element?
+    pub fn is_complete(&self) -> bool {
+        self.incident.len() == self.nodes && self.cols == self.ns
+    }
+
+    /// The shape fields without the data (for a derived block).
+    fn clone_shape(&self) -> Self {
+        Self {
+            f: Vec::new(),
+            specular: None,
+            correction: None,
+            incident: self.incident.clone(),
+            ..*self
+        }
     }
 
     /// The stored coefficient `f^m` at nodes `(o, i)` as a 4×4 matrix.
     pub fn node(&self, m: usize, o: usize, i: usize) -> Mueller {
-        let ns = self.ns;
+        let len = self.ns * self.cols;
         let b = self.offset(m, o, i);
-        unflatten(&self.f[b..b + ns * ns], ns)
+        unflatten(&self.f[b..b + len], self.ns, self.cols)
     }
 
     /// Interpolated `f^m(μ_o, μ_i)`, `m = 0..M`, at the polar angles
@@ -569,7 +626,7 @@ impl WavelengthTable {
         mu_sum: f64,
         what: Interpolant,
     ) -> Vec<Mueller> {
-        let ns2 = self.ns * self.ns;
+        let ns2 = self.ns * self.cols;
         // Tensor-product weights, with (μ_a + μ_b)/(μ_o + μ_i) for (T2).
         let mut weights = Vec::with_capacity(so.len * si.len);
         for a in 0..so.len {
@@ -595,7 +652,7 @@ impl WavelengthTable {
                         *x += w * y;
                     }
                 }
-                unflatten(&acc, self.ns)
+                unflatten(&acc, self.ns, self.cols)
             })
             .collect()
     }
@@ -630,14 +687,15 @@ impl WavelengthTable {
                 mu_of_theta_deg(theta_i_deg),
                 dphi_prop,
             );
-            let ns = self.ns;
-            for (row, drow) in f.iter_mut().zip(&d).take(ns) {
-                for (x, y) in row.iter_mut().zip(drow).take(ns) {
+            for (row, drow) in f.iter_mut().zip(&d).take(self.ns) {
+                for (x, y) in row.iter_mut().zip(drow).take(self.cols) {
                     *x += y;
                 }
             }
         }
-        if self.ns == 4 {
+        // Cloude filtering needs all 16 elements: a block of fewer
+        // (`needs.stokes`) is returned as interpolated.
+        if self.ns == 4 && self.cols == 4 {
             solver::make_realizable(f);
         }
     }
@@ -650,7 +708,9 @@ impl WavelengthTable {
         let st = grid.stencil(theta_i_deg);
         let mut s = [[0.0; 4]; 4];
         for k in 0..st.len {
-            add_scaled(&mut s, &spec[st.start + k], st.w[k]);
+            if st.w[k] != 0.0 {
+                add_scaled(&mut s, &spec[self.incident_position(st.start + k)], st.w[k]);
+            }
         }
         Some(s)
     }
@@ -739,6 +799,8 @@ impl Table {
                     interpolation_error: b.interpolation_error,
                 })
                 .collect(),
+            stokes: plan.needs.stokes,
+            theta_i_deg: plan.needs.theta_i_deg.clone(),
         };
         Ok(Self {
             metadata,
@@ -805,12 +867,17 @@ impl Table {
     /// (incident ray `k = −ω_i`, outgoing `k = ω_o`): interpolation in the
     /// polar cosines (T2), exact Fourier sum (T1) at
     /// `Δφ_prop = φ_o − φ_i − 180°`, linear in wavelength.
+    ///
+    /// A table of part of the incident directions (`needs.theta_i_deg`)
+    /// refuses any other ([`Table::incident_theta`]); elements it does not
+    /// hold (`needs.stokes`) are zero, [`Table::shape`] says which.
     pub fn eval(&self, d: &Directions, wavelength_nm: Option<f64>) -> Result<Mueller, BrdfError> {
         d.validate()?;
+        let theta_i = self.incident_theta(d.theta_i_deg)?;
         let dphi = dphi_prop_rad(d.phi_i_deg, d.phi_o_deg);
         let mut f = [[0.0; 4]; 4];
         for (k, w) in self.wavelength_weights(wavelength_nm)? {
-            let m = self.wavelengths[k].eval(&self.grid, d.theta_i_deg, d.theta_o_deg, dphi);
+            let m = self.wavelengths[k].eval(&self.grid, theta_i, d.theta_o_deg, dphi);
             add_scaled(&mut f, &m, w);
         }
         Ok(f)
@@ -828,6 +895,7 @@ impl Table {
         wavelength_nm: Option<f64>,
     ) -> Result<Option<Mueller>, BrdfError> {
         d.validate()?;
+        let theta_i = self.incident_theta(d.theta_i_deg)?;
         let weights = self.wavelength_weights(wavelength_nm)?;
         if self.wavelengths.iter().all(|w| w.specular.is_none()) {
             return Ok(None);
@@ -837,12 +905,37 @@ impl Table {
         }
         let mut s = [[0.0; 4]; 4];
         for (k, w) in weights {
-            if let Some(m) = self.wavelengths[k].specular_at(&self.grid, d.theta_i_deg) {
+            if let Some(m) = self.wavelengths[k].specular_at(&self.grid, theta_i) {
                 add_scaled(&mut s, &m, w);
             }
         }
         let sigma = dphi_prop_rad(d.phi_i_deg, d.phi_o_deg);
         Ok(Some(mul(&rotation(sigma), &s)))
+    }
+
+    /// The incident polar angle to evaluate a query's `theta_i_deg` at:
+    /// itself when the table covers it, else a query error naming
+    /// `theta_i_deg` and `needs.theta_i_deg` ([`coverage::incident_theta`]).
+    pub fn incident_theta(&self, theta_i_deg: f64) -> Result<f64, BrdfError> {
+        coverage::incident_theta(self.metadata.theta_i_deg.as_ref(), theta_i_deg)
+    }
+
+    /// Rows and columns of the Mueller matrices this table answers with:
+    /// 4 × 4 for the full product (a scalar table's zeros included, as
+    /// always), 4 × 1 for `needs.stokes: "unpolarized_in"`, 1 × 1 for
+    /// `"intensity"`.
+    pub fn shape(&self) -> (usize, usize) {
+        match self.metadata.stokes {
+            StokesNeed::Full => (4, 4),
+            s => s.shape(self.wavelengths.first().map_or(4, |w| w.ns.max(w.cols))),
+        }
+    }
+
+    /// Does the table hold every element at every incident direction (what
+    /// a dense, Mitsuba or render use needs)? Else a query error naming
+    /// `what` and what the table lacks.
+    pub fn require_complete(&self, what: &str) -> Result<(), BrdfError> {
+        coverage::require_complete(self, what)
     }
 
     /// Total number of stored coefficients.

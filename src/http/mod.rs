@@ -67,7 +67,13 @@ pub struct AppState(pub Arc<App>);
         license(name = "MIT OR Apache-2.0")
     ),
     modifiers(&BearerAuth),
-    components(schemas(problem::Problem, brdfs::TableFormat, brdfs::DenseType, brdfs::TableBytes)),
+    components(schemas(
+        problem::Problem,
+        brdfs::TableFormat,
+        brdfs::DenseType,
+        brdfs::TableBytes,
+        brdfs::NeedsDocument
+    )),
     tags(
         (name = "brdfs", description = "Submit specs, follow jobs, fetch results"),
         (name = "operations", description = "Health, readiness, metrics")

@@ -44,7 +44,13 @@ fn d(ti: f64, pi: f64, to: f64, po: f64) -> Directions {
 fn pairs(theta_i: &[f64]) -> Vec<Directions> {
     let mut v = Vec::new();
     for &ti in theta_i {
-        for (to, po) in [(0.0, 0.0), (40.0, 100.0), (ti, 180.0), (88.5, 10.0), (63.0, 250.0)] {
+        for (to, po) in [
+            (0.0, 0.0),
+            (40.0, 100.0),
+            (ti, 180.0),
+            (88.5, 10.0),
+            (63.0, 250.0),
+        ] {
             v.push(d(ti, 15.0, to, po + 15.0));
         }
     }
@@ -90,7 +96,10 @@ fn reduced_tables_are_exactly_parts_of_the_full_table() {
                         for p in 0..4 {
                             for q in 0..4 {
                                 let expect = if p < rows && q < cols { a[p][q] } else { 0.0 };
-                                assert_eq!(b[p][q], expect, "{stokes} m={mm} o={o} i={i} ({p},{q})");
+                                assert_eq!(
+                                    b[p][q], expect,
+                                    "{stokes} m={mm} o={o} i={i} ({p},{q})"
+                                );
                             }
                         }
                     }
@@ -100,11 +109,16 @@ fn reduced_tables_are_exactly_parts_of_the_full_table() {
                 let (a, b) = (full.eval(&p, None).unwrap(), t.eval(&p, None).unwrap());
                 assert!(diff(&a, &b, rows, cols) <= 1e-13 * scale, "{stokes} {p:?}");
                 assert!(diff(&b, &[[0.0; 4]; 4], 4, 4) <= diff(&b, &[[0.0; 4]; 4], rows, cols));
-                let (sa, sb) = (full.specular(&p, None).unwrap(), t.specular(&p, None).unwrap());
+                let (sa, sb) = (
+                    full.specular(&p, None).unwrap(),
+                    t.specular(&p, None).unwrap(),
+                );
                 assert_eq!(sa.is_some(), sb.is_some());
                 if let (Some(sa), Some(sb)) = (sa, sb) {
                     assert!(diff(&sa, &sb, rows, cols) <= 1e-15, "{stokes} {p:?}");
-                    assert!(diff(&sb, &[[0.0; 4]; 4], 4, 4) == diff(&sb, &[[0.0; 4]; 4], rows, cols));
+                    assert!(
+                        diff(&sb, &[[0.0; 4]; 4], 4, 4) == diff(&sb, &[[0.0; 4]; 4], rows, cols)
+                    );
                 }
             }
             // The full table's other elements are not zero: the check sees them.
@@ -127,11 +141,17 @@ fn reduced_tables_are_exactly_parts_of_the_full_table() {
             for p in pairs(&inside) {
                 let (a, b) = (full.eval(&p, None).unwrap(), t.eval(&p, None).unwrap());
                 assert!(diff(&a, &b, 4, 4) <= 1e-13 * scale, "{need} {p:?}");
-                let (sa, sb) = (full.specular(&p, None).unwrap(), t.specular(&p, None).unwrap());
+                let (sa, sb) = (
+                    full.specular(&p, None).unwrap(),
+                    t.specular(&p, None).unwrap(),
+                );
                 assert_eq!(sa, sb, "{need} {p:?}");
             }
             for ti in [10.0, 45.0, 89.0] {
-                let e = t.eval(&d(ti, 0.0, 30.0, 0.0), None).unwrap_err().to_string();
+                let e = t
+                    .eval(&d(ti, 0.0, 30.0, 0.0), None)
+                    .unwrap_err()
+                    .to_string();
                 assert!(e.starts_with("theta_i_deg = "), "{e}");
                 assert!(e.contains("needs.theta_i_deg"), "{e}");
             }
@@ -169,7 +189,12 @@ fn files_say_what_they_hold_and_shrink_by_it() {
         (r#""stokes":"unpolarized_in""#, 4, 4, 1),
         (r#""stokes":"intensity""#, 4, 1, 1),
         (r#""theta_i_deg":[0,30,60]"#, 8, 4, 4),
-        (r#""stokes":"intensity","theta_i_deg":{"min":0,"max":10}"#, 12, 1, 1),
+        (
+            r#""stokes":"intensity","theta_i_deg":{"min":0,"max":10}"#,
+            12,
+            1,
+            1,
+        ),
     ] {
         let t = table(&tio2(base, need));
         let bytes = format::to_bytes(&t, DataType::F64).unwrap();
@@ -270,7 +295,16 @@ fn cli_eval_answers_in_the_reduced_shape() {
             out.to_str().unwrap(),
         ]);
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-        let mirror = ["--theta-i", "30", "--phi-i", "0", "--theta-o", "30", "--phi-o", "180"];
+        let mirror = [
+            "--theta-i",
+            "30",
+            "--phi-i",
+            "0",
+            "--theta-o",
+            "30",
+            "--phi-o",
+            "180",
+        ];
         let o = polbrdf(&[&["eval", out.to_str().unwrap()], &mirror[..]].concat());
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
         let v: Value = serde_json::from_slice(&o.stdout).unwrap();
@@ -295,7 +329,10 @@ fn cli_eval_answers_in_the_reduced_shape() {
             ]);
             assert_eq!(o.status.code(), Some(2));
             let err = String::from_utf8_lossy(&o.stderr);
-            assert!(err.contains("theta_i_deg") && err.contains("needs.theta_i_deg"), "{err}");
+            assert!(
+                err.contains("theta_i_deg") && err.contains("needs.theta_i_deg"),
+                "{err}"
+            );
             let o = polbrdf(&[
                 "export",
                 out.to_str().unwrap(),
@@ -306,7 +343,10 @@ fn cli_eval_answers_in_the_reduced_shape() {
             ]);
             assert!(!o.status.success());
             let err = String::from_utf8_lossy(&o.stderr);
-            assert!(err.contains("needs.stokes") && err.contains("Mitsuba"), "{err}");
+            assert!(
+                err.contains("needs.stokes") && err.contains("Mitsuba"),
+                "{err}"
+            );
         }
     }
     assert_eq!(shapes, [(4, 4), (4, 1), (1, 1)]);
@@ -334,16 +374,23 @@ async fn the_service_answers_in_the_reduced_shape_and_refuses_the_rest() {
         ids.push(id);
     }
     let get = |id: &str, ti: f64| {
-        format!(
-            "/v1/brdfs/{id}/eval?theta_i_deg={ti}&phi_i_deg=0&theta_o_deg={ti}&phi_o_deg=180"
-        )
+        format!("/v1/brdfs/{id}/eval?theta_i_deg={ti}&phi_i_deg=0&theta_o_deg={ti}&phi_o_deg=180")
     };
     let (code, v) = get_json(&c, &s, &get(&ids[0], 30.0)).await;
     assert_eq!(code, 200, "{v}");
     let m = &v["points"][0]["mueller"];
     assert_eq!(m.as_array().unwrap().len(), 4, "{v}");
-    assert!(m.as_array().unwrap().iter().all(|r| r.as_array().unwrap().len() == 1));
-    assert_eq!(v["points"][0]["specular"].as_array().unwrap().len(), 4, "{v}");
+    assert!(
+        m.as_array()
+            .unwrap()
+            .iter()
+            .all(|r| r.as_array().unwrap().len() == 1)
+    );
+    assert_eq!(
+        v["points"][0]["specular"].as_array().unwrap().len(),
+        4,
+        "{v}"
+    );
     let (code, v) = get_json(&c, &s, &get(&ids[1], 30.0)).await;
     assert_eq!(code, 200, "{v}");
     assert_eq!(v["points"][0]["mueller"].as_array().unwrap().len(), 1);
@@ -352,7 +399,10 @@ async fn the_service_answers_in_the_reduced_shape_and_refuses_the_rest() {
     let (code, v) = get_json(&c, &s, &get(&ids[1], 50.0)).await;
     assert_eq!(code, 422, "{v}");
     assert_eq!(v["path"], "theta_i_deg", "{v}");
-    assert!(v["detail"].as_str().unwrap().contains("needs.theta_i_deg"), "{v}");
+    assert!(
+        v["detail"].as_str().unwrap().contains("needs.theta_i_deg"),
+        "{v}"
+    );
     let body = json!({"points": [
         {"theta_i_deg": 20, "phi_i_deg": 0, "theta_o_deg": 10, "phi_o_deg": 0},
         {"theta_i_deg": 9, "phi_i_deg": 0, "theta_o_deg": 10, "phi_o_deg": 0}]});
@@ -391,10 +441,16 @@ async fn the_service_answers_in_the_reduced_shape_and_refuses_the_rest() {
     for (body, path) in [
         (rayleigh(r#"{"stokes":"linear"}"#, ""), "needs.stokes"),
         (
-            rayleigh(r#"{"stokes":"unpolarized_in"}"#, r#","solver":{"polarized":false}"#),
+            rayleigh(
+                r#"{"stokes":"unpolarized_in"}"#,
+                r#","solver":{"polarized":false}"#,
+            ),
             "needs.stokes",
         ),
-        (rayleigh(r#"{"theta_i_deg":[10,90]}"#, ""), "needs.theta_i_deg[1]"),
+        (
+            rayleigh(r#"{"theta_i_deg":[10,90]}"#, ""),
+            "needs.theta_i_deg[1]",
+        ),
         (rayleigh(r#"{"theta_i_deg":[]}"#, ""), "needs.theta_i_deg"),
         (
             rayleigh(r#"{"theta_i_deg":{"min":50,"max":40}}"#, ""),
@@ -407,10 +463,7 @@ async fn the_service_answers_in_the_reduced_shape_and_refuses_the_rest() {
     ] {
         let (code, v, _) = post(&c, &s, &body).await;
         assert_eq!(code, 422, "{body}: {v}");
-        assert!(
-            v["path"].as_str().unwrap().starts_with(path),
-            "{body}: {v}"
-        );
+        assert!(v["path"].as_str().unwrap().starts_with(path), "{body}: {v}");
         let file = dir.0.join("bad.json");
         std::fs::write(&file, &body).unwrap();
         let out = polbrdf(&["solve", file.to_str().unwrap()]);

@@ -80,7 +80,10 @@ fn outside(need: Option<&IncidentNeed>, theta_i_deg: f64) -> BrdfError {
     let held = match need {
         Some(IncidentNeed::Angles(a)) => format!(
             "the angles [{}] only",
-            a.iter().map(|x| x.to_string()).collect::<Vec<_>>().join(", ")
+            a.iter()
+                .map(|x| x.to_string())
+                .collect::<Vec<_>>()
+                .join(", ")
         ),
         Some(IncidentNeed::Range(r)) => format!("[{}, {}]", r.min, r.max),
         None => "every angle".into(),
@@ -190,11 +193,7 @@ pub fn require_complete(table: &Table, what: &str) -> Result<(), BrdfError> {
 /// incident Stokes component that `stokes_in` (I, Q, U, V) excites: an
 /// `"unpolarized_in"` table answers unpolarized light only, an
 /// `"intensity"` table f11 of unpolarized light. `path` names the field.
-pub fn require_stokes_in(
-    table: &Table,
-    stokes_in: &[f64; 4],
-    path: &str,
-) -> Result<(), BrdfError> {
+pub fn require_stokes_in(table: &Table, stokes_in: &[f64; 4], path: &str) -> Result<(), BrdfError> {
     let polarized = stokes_in[1..].iter().any(|&x| x != 0.0);
     match table.metadata.stokes {
         StokesNeed::Full => Ok(()),

@@ -271,7 +271,10 @@ pub fn csv_slice(table: &Table, theta_i_deg: f64) -> Result<String, BrdfError> {
         CSV_HEADER.to_string()
     } else {
         let names = coverage::element_names(elements).join(",");
-        format!("{},{names}", CSV_HEADER.split(",m00").next().unwrap_or(CSV_HEADER))
+        format!(
+            "{},{names}",
+            CSV_HEADER.split(",m00").next().unwrap_or(CSV_HEADER)
+        )
     };
     out.push('\n');
     for wt in &table.wavelengths {

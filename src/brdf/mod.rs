@@ -4,6 +4,9 @@
 //! * [`table`]: per wavelength the Fourier coefficients `f^m(μ_o, μ_i)` of
 //!   the 4×4 Mueller BRDF on a polar grid ([`grid`]), point evaluation by
 //!   interpolation in the cosines and an exact Fourier sum in azimuth.
+//! * [`metadata`]: the JSON metadata of a table and the direction pairs it
+//!   is queried at.
+//! * [`build`]: solving a spec into a table's blocks (the kept part).
 //! * [`frames`]: evaluation from local-frame unit vectors and rotation of the
 //!   Stokes reference frames (conventions §5).
 //! * [`format`]: the binary table file (magic, version, SHA-256).
@@ -17,11 +20,13 @@
 //! the file helpers in [`format`] and [`export`] is pure.
 
 pub mod angles;
+pub mod build;
 pub mod coverage;
 pub mod export;
 pub mod format;
 pub mod frames;
 pub mod grid;
+pub mod metadata;
 pub mod mitsuba;
 pub mod table;
 

@@ -18,6 +18,7 @@ pub mod brdfs;
 pub mod config;
 pub mod error;
 pub mod eval;
+pub mod needs_doc;
 pub mod ops;
 pub mod problem;
 pub mod results;
@@ -72,7 +73,7 @@ pub struct AppState(pub Arc<App>);
         brdfs::TableFormat,
         brdfs::DenseType,
         brdfs::TableBytes,
-        brdfs::NeedsDocument
+        needs_doc::NeedsDocument
     )),
     tags(
         (name = "brdfs", description = "Submit specs, follow jobs, fetch results"),

@@ -192,10 +192,10 @@ async fn what_cannot_be_served_is_refused_at_submission() {
     }
     // A need this build does not know is refused, never ignored.
     let unknown = r#"{"layers":[{"optical_thickness":1,"scatterer":{"rayleigh":{"albedo":1}}}],
-        "needs":{"stokes":"intensity"}}"#;
+        "needs":{"theta_o_deg":[10]}}"#;
     let (code, v, _) = post(&c, &s, unknown).await;
     assert_eq!(code, 422, "{v}");
-    assert!(v["detail"].as_str().unwrap().contains("stokes"), "{v}");
+    assert!(v["detail"].as_str().unwrap().contains("theta_o_deg"), "{v}");
     // Explicit streams without the estimate: solved, and says it has none.
     let ok = r#"{"layers":[{"optical_thickness":1,"scatterer":{"rayleigh":{"albedo":1}}}],
         "solver":{"streams":8,"tolerance":1e-4},"needs":{"error_estimate":false,"grid":{"polar_nodes":16}}}"#;

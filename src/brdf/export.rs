@@ -9,6 +9,7 @@
 
 use super::BrdfError;
 use super::angles::dphi_prop_rad;
+use super::coverage;
 use super::table::{Directions, Table, fourier_synthesis};
 use crate::physics::stokes::Mueller;
 use rayon::prelude::*;
@@ -63,7 +64,9 @@ impl DenseGrid {
     }
 }
 
-/// A dense export: `data` has shape `(W, Ti, To, P, 4, 4)`, C order.
+/// A dense export: `data` has shape `(W, Ti, To, P, R, C)`, C order, with
+/// `R × C` the table's [`Table::shape`] (4 × 4, or the part `needs.stokes`
+/// kept: 4 × 1, 1 × 1).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Dense {
     /// Wavelengths of the table (nm; `None` for a wavelength-free table).
@@ -72,38 +75,46 @@ pub struct Dense {
     pub grid: DenseGrid,
     /// Mueller BRDF values (1/sr).
     pub data: Vec<f64>,
+    /// Rows and columns of each matrix ([`Table::shape`]).
+    pub elements: (usize, usize),
 }
 
 impl Dense {
-    /// `(W, Ti, To, P, 4, 4)`.
+    /// `(W, Ti, To, P, R, C)`.
     pub fn shape(&self) -> [usize; 6] {
         [
             self.wavelength_nm.len(),
             self.grid.theta_i_deg.len(),
             self.grid.theta_o_deg.len(),
             self.grid.phi_deg.len(),
-            4,
-            4,
+            self.elements.0,
+            self.elements.1,
         ]
     }
 }
 
 /// Evaluate every wavelength of the table on a dense grid (the Fourier
 /// coefficients are interpolated once per polar pair, then summed at every
-/// azimuth).
-pub fn dense(table: &Table, grid: &DenseGrid) -> Dense {
+/// azimuth). A grid incident angle outside the table's `needs.theta_i_deg`
+/// is a query error ([`Table::incident_theta`]), never extrapolated.
+pub fn dense(table: &Table, grid: &DenseGrid) -> Result<Dense, BrdfError> {
+    let theta_i: Vec<f64> = grid
+        .theta_i_deg
+        .iter()
+        .map(|&t| table.incident_theta(t))
+        .collect::<Result<_, _>>()?;
+    let elements = table.shape();
     let dphi: Vec<f64> = grid
         .phi_deg
         .iter()
         .map(|&p| dphi_prop_rad(0.0, p))
         .collect();
-    let per_pair = grid.phi_deg.len() * 16;
+    let per_pair = grid.phi_deg.len() * elements.0 * elements.1;
     let mut data = Vec::with_capacity(
         table.wavelengths.len() * grid.theta_i_deg.len() * grid.theta_o_deg.len() * per_pair,
     );
     for wt in &table.wavelengths {
-        let rows: Vec<Vec<f64>> = grid
-            .theta_i_deg
+        let rows: Vec<Vec<f64>> = theta_i
             .par_iter()
             .map(|&ti| {
                 let mut row = Vec::with_capacity(grid.theta_o_deg.len() * per_pair);
@@ -112,7 +123,9 @@ pub fn dense(table: &Table, grid: &DenseGrid) -> Dense {
                     for &d in &dphi {
                         let mut m = fourier_synthesis(&c, wt.ns, d);
                         wt.complete(&mut m, ti, to, d);
-                        row.extend(m.iter().flatten());
+                        for r in &m[..elements.0] {
+                            row.extend(&r[..elements.1]);
+                        }
                     }
                 }
                 row
@@ -122,11 +135,12 @@ pub fn dense(table: &Table, grid: &DenseGrid) -> Dense {
             data.extend(r);
         }
     }
-    Dense {
+    Ok(Dense {
         wavelength_nm: table.wavelengths.iter().map(|w| w.wavelength_nm).collect(),
         grid: grid.clone(),
         data,
-    }
+        elements,
+    })
 }
 
 /// Element type of a `.npy` file.
@@ -188,8 +202,10 @@ pub fn npy_bytes(shape: &[usize], data: &[f64], ty: NpyType) -> Result<Vec<u8>, 
     Ok(out)
 }
 
-fn mueller_json(m: &Mueller) -> Value {
-    json!(m)
+/// A matrix as JSON nested rows, in the table's shape ([`Table::shape`]:
+/// `[[m00], [m10], [m20], [m30]]` for column 0, `[[m00]]` for f11).
+pub fn mueller_json(table: &Table, m: &Mueller) -> Value {
+    json!(coverage::nested(m, table.shape()))
 }
 
 /// JSON for a small point set: per wavelength (all of the table's, or the
@@ -214,8 +230,8 @@ pub fn points_json(
             pts.push(json!({
                 "theta_i_deg": d.theta_i_deg, "phi_i_deg": d.phi_i_deg,
                 "theta_o_deg": d.theta_o_deg, "phi_o_deg": d.phi_o_deg,
-                "mueller": mueller_json(&m),
-                "specular": s.map(|s| mueller_json(&s)),
+                "mueller": mueller_json(table, &m),
+                "specular": s.map(|s| mueller_json(table, &s)),
             }));
         }
         results.push(json!({"wavelength_nm": wl, "points": pts}));
@@ -250,7 +266,16 @@ pub fn csv_slice(table: &Table, theta_i_deg: f64) -> Result<String, BrdfError> {
     for &t in &theta {
         rows.push((t, t, 180.0));
     }
-    let mut out = String::from(CSV_HEADER);
+    let elements = table.shape();
+    let mut out = if elements == (4, 4) {
+        CSV_HEADER.to_string()
+    } else {
+        let names = coverage::element_names(elements).join(",");
+        format!(
+            "{},{names}",
+            CSV_HEADER.split(",m00").next().unwrap_or(CSV_HEADER)
+        )
+    };
     out.push('\n');
     for wt in &table.wavelengths {
         let wl = wt.wavelength_nm;
@@ -266,8 +291,10 @@ pub fn csv_slice(table: &Table, theta_i_deg: f64) -> Result<String, BrdfError> {
                 "{},{theta_i_deg},0,{to},{po},{signed}",
                 wl.map_or(String::new(), |w| w.to_string())
             );
-            for x in m.iter().flatten() {
-                line.push_str(&format!(",{x:e}"));
+            for r in &m[..elements.0] {
+                for x in &r[..elements.1] {
+                    line.push_str(&format!(",{x:e}"));
+                }
             }
             out.push_str(&line);
             out.push('\n');
@@ -335,7 +362,7 @@ mod tests {
             theta_o_deg: vec![10.0, 60.0],
             phi_deg: vec![0.0, 90.0, 180.0, 300.0],
         };
-        let d = dense(&t, &g);
+        let d = dense(&t, &g).unwrap();
         assert_eq!(d.shape(), [1, 3, 2, 4, 4, 4]);
         for (a, &ti) in g.theta_i_deg.iter().enumerate() {
             for (b, &to) in g.theta_o_deg.iter().enumerate() {

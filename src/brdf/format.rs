@@ -11,11 +11,16 @@
 //! payload
 //!   u64 L, L bytes of UTF-8 JSON metadata
 //!   u32 W (wavelengths), u32 N (polar nodes), u32 ns (1 or 4), u32 flags
-//!       (bit 0: specular matrices present; bit 1: correction records)
+//!       (bit 0: specular matrices present; bit 1: correction records;
+//!        bit 2: column 0 only, C = 1 (else C = ns); bit 3: incident
+//!        nodes listed)
 //!   f64[N] θ nodes (deg), f64[N] μ nodes, f64[W] wavelengths (nm; NaN: none)
 //!   u32[W] M_w (Fourier orders per wavelength)
-//!   per wavelength w: data[M_w][N (out)][N (in)][ns][ns]  f^m(μ_o, μ_i)
-//!                     then, if flag bit 0: data[N (in)][4][4]  specular S
+//!   if flag bit 3: u32 K, u32[K] the grid nodes held on the incident axis
+//!       (strictly increasing, < N); else K = N, all of them
+//!   per wavelength w: data[M_w][N (out)][K (in)][ns][C]  f^m(μ_o, μ_i)
+//!                     then, if flag bit 0: data[K (in)][R][R]  specular S,
+//!                     R = 4 (R × R = ns × C with bit 2)
 //!                     then, if flag bit 1: a correction record (below)
 //! correction record (always f64; the single-scattering correction T3)
 //!   u32 present (0/1); if 1:
@@ -35,6 +40,7 @@ use super::BrdfError;
 use super::grid::PolarGrid;
 use super::table::{Metadata, StoredCorrection, Table, WavelengthTable};
 use crate::digest::{self, hex};
+use crate::material::needs::StokesNeed;
 use crate::physics::RefractiveIndex;
 use crate::physics::expansion::GreekCoefficients;
 use crate::physics::stokes::Mueller;
@@ -87,19 +93,34 @@ fn checksum(header_start: &[u8], payload: &[u8]) -> [u8; 32] {
 /// Serialise a table (docs/table-format.md).
 pub fn to_bytes(table: &Table, dtype: DataType) -> Result<Vec<u8>, BrdfError> {
     let n = table.grid.len();
-    let ns = table.wavelengths.first().map_or(4, |w| w.ns);
+    let first = table.wavelengths.first();
+    let ns = first.map_or(4, |w| w.ns);
+    let cols = first.map_or(ns, |w| w.cols);
+    let incident: Vec<usize> = first.map_or_else(|| (0..n).collect(), |w| w.incident.clone());
     let has_spec = table.wavelengths.iter().any(|w| w.specular.is_some());
     let has_corr = table.wavelengths.iter().any(|w| w.correction.is_some());
     for w in &table.wavelengths {
-        if w.ns != ns || w.nodes != n || w.specular.is_some() != has_spec {
+        if w.ns != ns
+            || w.cols != cols
+            || w.incident != incident
+            || w.nodes != n
+            || w.specular.is_some() != has_spec
+        {
             return Err(fmt_err(
                 "inconsistent wavelength blocks (Stokes components, nodes or specular)",
             ));
         }
-        if w.f.len() != w.orders * n * n * ns * ns {
+        if w.f.len() != w.orders * n * incident.len() * ns * cols {
             return Err(fmt_err("coefficient array has the wrong length"));
         }
     }
+    let column_only = cols != ns || table.metadata.stokes != StokesNeed::Full;
+    if column_only && cols != 1 {
+        return Err(fmt_err("a reduced table holds one Mueller column"));
+    }
+    let listed = incident.len() != n;
+    // The specular block: 4 × 4 as version 4 always had, or ns × 1.
+    let (sr, sc) = if column_only { (ns, 1) } else { (4, 4) };
     let meta = serde_json::to_vec(&table.metadata).map_err(|e| fmt_err(e.to_string()))?;
     let mut p = Vec::new();
     p.extend_from_slice(&(meta.len() as u64).to_le_bytes());
@@ -108,7 +129,10 @@ pub fn to_bytes(table: &Table, dtype: DataType) -> Result<Vec<u8>, BrdfError> {
         table.wavelengths.len() as u32,
         n as u32,
         ns as u32,
-        u32::from(has_spec) | (u32::from(has_corr) << 1),
+        u32::from(has_spec)
+            | (u32::from(has_corr) << 1)
+            | (u32::from(column_only) << 2)
+            | (u32::from(listed) << 3),
     ] {
         p.extend_from_slice(&x.to_le_bytes());
     }
@@ -121,6 +145,12 @@ pub fn to_bytes(table: &Table, dtype: DataType) -> Result<Vec<u8>, BrdfError> {
     for w in &table.wavelengths {
         p.extend_from_slice(&(w.orders as u32).to_le_bytes());
     }
+    if listed {
+        p.extend_from_slice(&(incident.len() as u32).to_le_bytes());
+        for &i in &incident {
+            p.extend_from_slice(&(i as u32).to_le_bytes());
+        }
+    }
     let put = |p: &mut Vec<u8>, x: f64| match dtype {
         DataType::F32 => p.extend_from_slice(&(x as f32).to_le_bytes()),
         DataType::F64 => p.extend_from_slice(&x.to_le_bytes()),
@@ -131,8 +161,10 @@ pub fn to_bytes(table: &Table, dtype: DataType) -> Result<Vec<u8>, BrdfError> {
         }
         if let Some(s) = &w.specular {
             for m in s {
-                for &x in m.iter().flatten() {
-                    put(&mut p, x);
+                for row in &m[..sr] {
+                    for &x in &row[..sc] {
+                        put(&mut p, x);
+                    }
                 }
             }
         }
@@ -405,7 +437,7 @@ pub fn from_bytes(b: &[u8]) -> Result<Table, BrdfError> {
     if ns != 1 && ns != 4 {
         return Err(fmt_err(format!("malformed table: {ns} Stokes components")));
     }
-    if flags > 3 {
+    if flags > 15 {
         return Err(fmt_err(format!(
             "malformed table: unknown flags {flags:#x}"
         )));
@@ -431,20 +463,55 @@ pub fn from_bytes(b: &[u8]) -> Result<Table, BrdfError> {
     for _ in 0..w {
         orders.push(c.u32("Fourier orders")? as usize);
     }
+    let column_only = flags & 4 == 4;
+    let (cols, sr, sc) = if column_only { (1, ns, 1) } else { (ns, 4, 4) };
+    let incident = if flags & 8 == 8 {
+        let k = c.u32("incident node count")? as usize;
+        let mut v = Vec::with_capacity(k.min(n));
+        for _ in 0..k {
+            v.push(c.u32("incident nodes")? as usize);
+        }
+        if k == 0 || v.windows(2).any(|p| p[1] <= p[0]) || v[k - 1] >= n {
+            return Err(fmt_err(
+                "malformed table: the incident nodes are not increasing grid nodes",
+            ));
+        }
+        v
+    } else {
+        (0..n).collect()
+    };
+    let expected = match (column_only, ns) {
+        (false, _) => StokesNeed::Full,
+        (true, 4) => StokesNeed::UnpolarizedIn,
+        (true, _) => StokesNeed::Intensity,
+    };
+    if meta.stokes != expected {
+        return Err(fmt_err(format!(
+            "malformed table: the metadata says stokes {:?}, the layout holds {:?}",
+            meta.stokes.name(),
+            expected.name()
+        )));
+    }
+    if (flags & 8 == 8) != meta.theta_i_deg.is_some() {
+        return Err(fmt_err(
+            "malformed table: incident nodes listed without needs.theta_i_deg in the metadata, or the reverse",
+        ));
+    }
+    let kn = incident.len();
     let mut blocks = Vec::with_capacity(w);
     for k in 0..w {
         let count = orders[k]
-            .checked_mul(n * n * ns * ns)
+            .checked_mul(n * kn * ns * cols)
             .ok_or_else(|| fmt_err("size overflow"))?;
         let f = c.data(count, dtype, "coefficients")?;
         let specular = if flags & 1 == 1 {
-            let v = c.data(n * 16, dtype, "specular matrices")?;
+            let v = c.data(kn * sr * sc, dtype, "specular matrices")?;
             Some(
-                v.chunks_exact(16)
+                v.chunks_exact(sr * sc)
                     .map(|ch| {
                         let mut m: Mueller = [[0.0; 4]; 4];
-                        for (p, row) in m.iter_mut().enumerate() {
-                            row.copy_from_slice(&ch[4 * p..4 * p + 4]);
+                        for (p, row) in m.iter_mut().enumerate().take(sr) {
+                            row[..sc].copy_from_slice(&ch[sc * p..sc * p + sc]);
                         }
                         m
                     })
@@ -461,7 +528,9 @@ pub fn from_bytes(b: &[u8]) -> Result<Table, BrdfError> {
         blocks.push(WavelengthTable {
             wavelength_nm: if wl[k].is_nan() { None } else { Some(wl[k]) },
             ns,
+            cols,
             nodes: n,
+            incident: incident.clone(),
             orders: orders[k],
             f,
             specular,

@@ -370,6 +370,8 @@ pub struct MitsubaTable {
 /// Build the tensor (module doc): every node of the `(φ_d, θ_d, θ_h)` grid
 /// at every export wavelength, by [`Table::eval_vectors`] and (R2).
 pub fn build(table: &Table, opts: &MitsubaOptions) -> Result<MitsubaTable, BrdfError> {
+    // Mitsuba samples every direction pair and the whole matrix (R2).
+    table.require_complete("the Mitsuba export")?;
     for (name, n) in [
         ("phi_d", opts.phi_d),
         ("theta_d", opts.theta_d),

@@ -4,10 +4,15 @@
 //! * [`table`]: per wavelength the Fourier coefficients `f^m(μ_o, μ_i)` of
 //!   the 4×4 Mueller BRDF on a polar grid ([`grid`]), point evaluation by
 //!   interpolation in the cosines and an exact Fourier sum in azimuth.
+//! * [`metadata`]: the JSON metadata of a table and the direction pairs it
+//!   is queried at.
+//! * [`build`]: solving a spec into a table's blocks (the kept part).
 //! * [`frames`]: evaluation from local-frame unit vectors and rotation of the
 //!   Stokes reference frames (conventions §5).
 //! * [`format`]: the binary table file (magic, version, SHA-256).
 //! * [`export`]: dense NumPy arrays, JSON point sets, CSV slices.
+//! * [`coverage`]: the part of a table a request needs (`needs.stokes`,
+//!   `needs.theta_i_deg`): elements and incident nodes kept, queries allowed.
 //! * [`angles`]: graphics angles ↔ solver quantities (conventions §5).
 //! * [`mitsuba`]: Mitsuba 3 `measured_polarized` tensor files (docs/mitsuba.md).
 //!
@@ -16,10 +21,13 @@
 
 pub mod angles;
 mod assemble;
+pub mod build;
+pub mod coverage;
 pub mod export;
 pub mod format;
 pub mod frames;
 pub mod grid;
+pub mod metadata;
 pub mod mitsuba;
 pub mod table;
 

@@ -27,52 +27,18 @@
 
 use super::BrdfError;
 use super::angles::{self, Vec3, dphi_prop_rad, mu_of_theta_deg};
+pub use super::build::{BuildOptions, BuiltWavelength, build, build_wavelength, plan_grid};
+use super::coverage;
 use super::grid::{PolarGrid, STENCIL, Stencil};
-use crate::material::{self, Spec};
+pub use super::metadata::{Directions, EstimateMeta, Metadata, SolverMeta, WavelengthMeta};
+use crate::material::Spec;
+use crate::material::needs::StokesNeed;
 use crate::physics::RefractiveIndex;
 use crate::physics::stokes::{Mueller, mul, rotation};
 use crate::plan::{self, Plan};
+use crate::solver;
 use crate::solver::truncation::{CorrectionLayer, SingleScatterCorrection};
-use crate::solver::{self, Base};
-use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
-use std::time::Instant;
-
-/// A direction pair in the graphics convention (degrees; both directions
-/// point away from the surface, conventions §5). The field names are those
-/// of `polbrdf solve --points`.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Directions {
-    /// Incident polar angle, `[0, 90]`.
-    pub theta_i_deg: f64,
-    /// Incident azimuth.
-    pub phi_i_deg: f64,
-    /// Outgoing polar angle, `[0, 90]`.
-    pub theta_o_deg: f64,
-    /// Outgoing azimuth.
-    pub phi_o_deg: f64,
-}
-
-impl Directions {
-    /// Check the ranges of `polbrdf solve --points` (θ in `[0, 90]`, φ in
-    /// `[−360, 360]`, finite).
-    pub fn validate(&self) -> Result<(), BrdfError> {
-        let check = |what: &str, v: f64, lo: f64, hi: f64| {
-            if v.is_finite() && (lo..=hi).contains(&v) {
-                Ok(())
-            } else {
-                Err(BrdfError::Query(format!(
-                    "{what} = {v} is outside [{lo}, {hi}]"
-                )))
-            }
-        };
-        check("theta_i_deg", self.theta_i_deg, 0.0, 90.0)?;
-        check("theta_o_deg", self.theta_o_deg, 0.0, 90.0)?;
-        check("phi_i_deg", self.phi_i_deg, -360.0, 360.0)?;
-        check("phi_o_deg", self.phi_o_deg, -360.0, 360.0)
-    }
-}
 
 /// Angular tolerance (radians) within which an outgoing direction "is" the
 /// mirror direction of the incident one, so that the specular term is
@@ -94,16 +60,25 @@ pub enum Interpolant {
 pub struct WavelengthTable {
     /// Vacuum wavelength (nm); `None` for a wavelength-free spec.
     pub wavelength_nm: Option<f64>,
-    /// Stokes components per direction (4 polarized, 1 scalar).
+    /// Rows stored: outgoing Stokes components (4 polarized, 1 scalar or
+    /// `needs.stokes: "intensity"`).
     pub ns: usize,
-    /// Number of polar nodes `N`.
+    /// Columns stored: incident Stokes components (`ns`, or 1 for
+    /// `needs.stokes` other than full: column 0 only).
+    pub cols: usize,
+    /// Number of polar nodes `N` of the grid (outgoing axis).
     pub nodes: usize,
+    /// Grid nodes held on the incident axis, increasing (`0..N` unless
+    /// `needs.theta_i_deg`, [`super::coverage::incident_nodes`]).
+    pub incident: Vec<usize>,
     /// Number of Fourier orders `M` (`m = 0..M`).
     pub orders: usize,
     /// `f^m(μ_o, μ_i)` (1/sr), element `(p, q)` at
-    /// `(((m·N + o)·N + i)·ns + p)·ns + q`.
+    /// `(((m·N + o)·K + k)·ns + p)·cols + q` with `k` the position of the
+    /// incident node in [`WavelengthTable::incident`] (`K` of them).
     pub f: Vec<f64>,
-    /// `e^{−2τ/μ_i} M_F(μ_i)` per incident node (mirror bases), else `None`.
+    /// `e^{−2τ/μ_i} M_F(μ_i)` per held incident node (mirror bases), else
+    /// `None`; elements outside `ns × cols` are zero unless `cols = ns`.
     pub specular: Option<Vec<Mueller>>,
     /// Solver wall time for this wavelength (ms).
     pub wall_time_ms: f64,
@@ -157,82 +132,6 @@ impl StoredCorrection {
     }
 }
 
-/// The solver's error estimate (`solver::accuracy::ErrorEstimate`).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct EstimateMeta {
-    /// Estimated max |error of f11| relative to max f11.
-    pub max_err_f11: f64,
-    /// Streams of the solves used (`N/2`, `3N/4`, `N`; `N/2`, `N/2`, `N`
-    /// for a truncation-dominated answer, `solver::accuracy`).
-    pub streams: [usize; 3],
-    /// Observed contraction `d(3N/4, N)/d(N/2, 3N/4)` (informational;
-    /// `null` when undefined).
-    #[serde(default)]
-    pub contraction: Option<f64>,
-}
-
-/// Numerical settings of the solver, as recorded in the metadata.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct SolverMeta {
-    /// Quadrature points per hemisphere (the fixed or default count; with
-    /// a tolerance see the per-wavelength `streams`).
-    pub streams: usize,
-    /// `solver.tolerance` of the spec, if any (streams chosen per wavelength).
-    pub tolerance: Option<f64>,
-    /// Vector or scalar RTE.
-    pub polarized: bool,
-    /// Thin start layer relative to the smallest quadrature cosine.
-    pub start_factor: f64,
-    /// Fourier series stopping tolerance.
-    pub fourier_tolerance: f64,
-    /// Highest order requested (`null`: all).
-    pub max_order: Option<usize>,
-}
-
-/// Per-wavelength metadata.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct WavelengthMeta {
-    /// Vacuum wavelength (nm), `null` for a wavelength-free spec.
-    pub wavelength_nm: Option<f64>,
-    /// Fourier orders stored.
-    pub fourier_orders: usize,
-    /// Solver wall time (ms).
-    pub wall_time_ms: f64,
-    /// Quadrature streams of the solve.
-    pub streams: usize,
-    /// The solver's a-posteriori error estimate, when one was made (specs
-    /// with `solver.tolerance`, docs/spec.md).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub error_estimate: Option<EstimateMeta>,
-    /// Measured interpolation error of f11 relative to max f11, for a grid
-    /// the request chose (`needs.grid`): the largest error at probe angles
-    /// between the nodes (`PolarGrid::probe_theta_deg`), against the
-    /// solver there.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub interpolation_error: Option<f64>,
-}
-
-/// The JSON metadata of a table file (docs/table-format.md).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct Metadata {
-    /// `polbrdf <version>`.
-    pub generator: String,
-    /// The material spec the table was built from (docs/spec.md).
-    pub spec: serde_json::Value,
-    /// The spec's id (SHA-256 of its canonical form, `plan::id`).
-    pub spec_hash: String,
-    /// Solver settings.
-    pub solver: SolverMeta,
-    /// How the polar grid was made.
-    pub grid: String,
-    /// How the table is interpolated.
-    pub interpolation: String,
-    /// Frames and normalisation.
-    pub conventions: String,
-    /// Per wavelength: orders and timings.
-    pub wavelengths: Vec<WavelengthMeta>,
-}
-
 /// A BRDF table: metadata, the polar grid and one block per wavelength
 /// (increasing wavelength).
 #[derive(Clone, Debug, PartialEq)]
@@ -245,243 +144,16 @@ pub struct Table {
     pub wavelengths: Vec<WavelengthTable>,
 }
 
-/// Solve the spec once per wavelength at the grid cosines
-/// ([`solver::reflection`] with `mu_user` = the grid's `μ`; for a spec with
-/// `solver.tolerance` and no `solver.streams`,
-/// `solver::accuracy::reflection_to_tolerance`, as `polbrdf solve` does) and
-/// keep `f^m = ρ^m/μ_i` (T0) and, for a mirror base, `e^{−2τ/μ} M_F(μ)` per
-/// node.
-pub fn build(spec: &Spec, grid: &PolarGrid) -> Result<Vec<WavelengthTable>, BrdfError> {
-    let plan = Plan::lower(spec)?;
-    (0..plan.wavelengths.len())
-        .map(|k| build_wavelength(&plan, k, grid, &BuildOptions::default()).map(|b| b.block))
-        .collect()
-}
-
-/// The polar grid a plan's table is built on: the default 64 nodes, or
-/// `needs.grid.polar_nodes` (validated: at least 6).
-pub fn plan_grid(plan: &Plan) -> PolarGrid {
-    PolarGrid::graded(plan.needs.polar_nodes()).expect("validated polar_nodes")
-}
-
-/// How [`Table::from_spec_with`] builds a table.
-pub struct BuildOptions<'a> {
-    /// Most streams a `solver.tolerance` may pick (explicit
-    /// `solver.streams` are the spec's own business).
-    pub max_streams: usize,
-    /// Progress: `(wavelength index, total wavelengths, fraction of that
-    /// wavelength done)`, called on the solving thread after each batch of
-    /// Fourier orders (approximate; see [`solver::OnOrders`]).
-    pub on_progress: &'a (dyn Fn(usize, usize, f64) + Sync),
-}
-
-impl Default for BuildOptions<'_> {
-    fn default() -> Self {
-        Self {
-            max_streams: material::MAX_STREAMS,
-            on_progress: &|_, _, _| {},
-        }
-    }
-}
-
-/// One wavelength of a table, solved: the block, the streams used and the
-/// solver's error estimate.
-pub struct BuiltWavelength {
-    /// The stored coefficients.
-    pub block: WavelengthTable,
-    /// Streams of the solve (the policy's fixed count, or what a tolerance
-    /// picked).
-    pub streams: usize,
-    /// The solver's a-posteriori estimate (`None` with
-    /// `needs.error_estimate: false`).
-    pub error_estimate: Option<EstimateMeta>,
-    /// Measured interpolation error of a grid other than the default
-    /// ([`interpolation_error`]); `None` on the default grid.
-    pub interpolation_error: Option<f64>,
-}
-
-/// Solve wavelength `k` of a plan at the grid cosines (see [`build`]).
-/// `options.on_progress` gets `(k, plan wavelengths, fraction)`.
-pub fn build_wavelength(
-    plan: &Plan,
-    k: usize,
-    grid: &PolarGrid,
-    options: &BuildOptions,
-) -> Result<BuiltWavelength, BrdfError> {
-    let total = plan.wavelengths.len();
-    let lowered = &plan.wavelengths[k];
-    let (wl, problem) = (lowered.wavelength_nm, &lowered.problem);
-    let t0 = Instant::now();
-    let progress = |x: f64| (options.on_progress)(k, total, x);
-    // A grid other than the default (`needs.grid.polar_nodes`) is also
-    // solved at probe angles between its nodes (`PolarGrid::probe_theta_deg`),
-    // where its interpolation error is measured (`interpolation_error`);
-    // the table stores the nodes only. That is 2n + 6 user directions:
-    // fewer than the default grid's 64 for n ≤ 28 nodes.
-    let probes = if grid.len() != crate::brdf::grid::DEFAULT_NODES {
-        grid.probe_theta_deg()
-    } else {
-        Vec::new()
-    };
-    let mut mu_user = grid.mu.clone();
-    mu_user.extend(probes.iter().map(|&t| mu_of_theta_deg(t)));
-    let estimate_meta = |e: solver::accuracy::ErrorEstimate| EstimateMeta {
-        max_err_f11: e.max_err_f11,
-        streams: e.streams,
-        contraction: e.contraction,
-    };
-    let (mut refl, streams, error_estimate) = match plan.policy {
-        // `needs.error_estimate: false`: one solve instead of three.
-        plan::StreamPolicy::Fixed(_) if !plan.needs.error_estimate => {
-            let r = solver::reflection_observed(problem, &mu_user, &|done, bound| {
-                progress(done as f64 / bound.max(1) as f64)
-            })?;
-            (r, problem.settings.streams, None)
-        }
-        plan::StreamPolicy::Fixed(_) => {
-            let e =
-                solver::accuracy::reflection_with_estimate_observed(problem, &mu_user, &progress)?;
-            (
-                e.reflection,
-                problem.settings.streams,
-                Some(estimate_meta(e.estimate)),
-            )
-        }
-        plan::StreamPolicy::Tolerance(t) => {
-            let e = solver::accuracy::reflection_to_tolerance(
-                problem,
-                &mu_user,
-                t,
-                options.max_streams,
-                &progress,
-            )?;
-            (
-                e.reflection,
-                e.estimate.streams[2],
-                Some(estimate_meta(e.estimate)),
-            )
-        }
-    };
-    let ns = refl.ns;
-    let n = grid.len();
-    let orders = refl.rho.len();
-    let mut f = vec![0.0; orders * n * n * ns * ns];
-    for (m, rho) in refl.rho.iter().enumerate() {
-        for o in 0..n {
-            for i in 0..n {
-                let inv = 1.0 / grid.mu[i];
-                let base = ((m * n + o) * n + i) * ns * ns;
-                for p in 0..ns {
-                    for q in 0..ns {
-                        f[base + p * ns + q] = rho[(o * ns + p, i * ns + q)] * inv;
-                    }
-                }
-            }
-        }
-    }
-    let specular = match &problem.base {
-        Base::Mirror { mueller } => Some(
-            grid.mu
-                .iter()
-                .zip(&refl.direct)
-                .map(|(&mu, &e)| scale(&mueller(mu), e * e))
-                .collect(),
-        ),
-        _ => None,
-    };
-    let correction = match refl.correction.take() {
-        Some(correction) => Some(StoredCorrection {
-            mirror_indices: match correction.mirror {
-                Some(_) => lowered.mirror_indices,
-                None => None,
-            },
-            correction,
-        }),
-        None => None,
-    };
-    let block = WavelengthTable {
-        wavelength_nm: wl,
-        ns,
-        nodes: n,
-        orders,
-        f,
-        specular,
-        wall_time_ms: t0.elapsed().as_secs_f64() * 1e3,
-        correction,
-    };
-    let interpolation_error =
-        (!probes.is_empty()).then(|| interpolation_error(&block, grid, &refl, &probes));
-    Ok(BuiltWavelength {
-        block,
-        streams,
-        error_estimate,
-        interpolation_error,
-    })
-}
-
-/// Measured interpolation error of a table block (T2): the largest
-/// `Σ_m w_m |f^m_11(interpolated) − f^m_11(solved)|`, `w_m = (2 − δ_m0)/(2π)`
-/// (a bound on the error of f11 at every azimuth, (T1)), over every pair of
-/// directions with at least one at a probe angle (`probes_theta_deg`,
-/// [`PolarGrid::probe_theta_deg`], solved in the same solve after the
-/// nodes: `refl.mu` = nodes then probes), relative to the largest f11 at
-/// `Δφ = 0` and `π` over all solved pairs. The single-scattering
-/// correction (T3) is exact at any direction and not part of it.
-fn interpolation_error(
-    block: &WavelengthTable,
-    grid: &PolarGrid,
-    refl: &solver::ReflectionFourier,
-    probes_theta_deg: &[f64],
-) -> f64 {
-    let n = grid.len();
-    let theta: Vec<f64> = grid
-        .theta_deg
-        .iter()
-        .chain(probes_theta_deg)
-        .copied()
-        .collect();
-    let ns = refl.ns;
-    let orders = block.orders.min(refl.rho.len());
-    let weight = |m: usize| if m == 0 { 1.0 } else { 2.0 } / (2.0 * PI);
-    let solved = |m: usize, a: usize, b: usize| refl.rho[m][(a * ns, b * ns)] / refl.mu[b];
-    let mut f11_max: f64 = 0.0;
-    for a in 0..theta.len() {
-        for b in 0..theta.len() {
-            let (mut at0, mut at_pi) = (0.0, 0.0);
-            for m in 0..orders {
-                let v = weight(m) * solved(m, a, b);
-                at0 += v;
-                at_pi += if m % 2 == 0 { v } else { -v };
-            }
-            f11_max = f11_max.max(at0.abs()).max(at_pi.abs());
-        }
-    }
-    let mut err: f64 = 0.0;
-    for a in 0..theta.len() {
-        for b in 0..theta.len() {
-            if a < n && b < n {
-                continue;
-            }
-            let c = block.coefficients(grid, theta[a], theta[b]);
-            let e: f64 = (0..orders)
-                .map(|m| weight(m) * (c[m][0][0] - solved(m, a, b)).abs())
-                .sum();
-            err = err.max(e);
-        }
-    }
-    if f11_max > 0.0 { err / f11_max } else { 0.0 }
-}
-
-/// An `ns × ns` row-major block as a 4×4 matrix (zeros outside).
-fn unflatten(v: &[f64], ns: usize) -> Mueller {
+/// A `rows × cols` row-major block as a 4×4 matrix (zeros outside).
+fn unflatten(v: &[f64], rows: usize, cols: usize) -> Mueller {
     let mut c = [[0.0; 4]; 4];
-    for (p, row) in c.iter_mut().enumerate().take(ns) {
-        row[..ns].copy_from_slice(&v[p * ns..p * ns + ns]);
+    for (p, row) in c.iter_mut().enumerate().take(rows) {
+        row[..cols].copy_from_slice(&v[p * cols..p * cols + cols]);
     }
     c
 }
 
-fn scale(m: &Mueller, a: f64) -> Mueller {
+pub(super) fn scale(m: &Mueller, a: f64) -> Mueller {
     m.map(|row| row.map(|x| a * x))
 }
 
@@ -494,7 +166,9 @@ fn add_scaled(acc: &mut Mueller, m: &Mueller, a: f64) {
 }
 
 /// The Fourier sum (T1) of per-order coefficients `c[m]` at `dphi_prop`
-/// (radians); scalar coefficients (`ns = 1`) fill `[0][0]` only.
+/// (radians) over the first `ns` rows and columns; scalar coefficients
+/// (`ns = 1`) fill `[0][0]` only. Elements outside those stored are zero
+/// in `c` and stay zero.
 pub fn fourier_synthesis(c: &[Mueller], ns: usize, dphi_prop: f64) -> Mueller {
     let mut f = [[0.0; 4]; 4];
     for (m, cm) in c.iter().enumerate() {
@@ -516,16 +190,46 @@ pub fn fourier_synthesis(c: &[Mueller], ns: usize, dphi_prop: f64) -> Mueller {
 }
 
 impl WavelengthTable {
-    /// Offset of the `ns × ns` block `f^m(μ_o, μ_i)` in [`WavelengthTable::f`].
+    /// Offset of the `ns × cols` block `f^m(μ_o, μ_i)` in
+    /// [`WavelengthTable::f`], `i` a grid node held on the incident axis
+    /// (panics for one not held: callers check the coverage first,
+    /// [`Table::incident_theta`]).
     pub fn offset(&self, m: usize, o: usize, i: usize) -> usize {
-        ((m * self.nodes + o) * self.nodes + i) * self.ns * self.ns
+        let k = self.incident_position(i);
+        ((m * self.nodes + o) * self.incident.len() + k) * self.ns * self.cols
+    }
+
+    /// Position of grid node `i` in [`WavelengthTable::incident`].
+    pub fn incident_position(&self, i: usize) -> usize {
+        if self.incident.len() == self.nodes {
+            return i;
+        }
+        self.incident
+            .binary_search(&i)
+            .unwrap_or_else(|_| panic!("incident node {i} is not held by this table"))
+    }
+
+    /// Does this block hold every incident node and every element?
+    pub fn is_complete(&self) -> bool {
+        self.incident.len() == self.nodes && self.cols == self.ns
+    }
+
+    /// The shape fields without the data (for a derived block).
+    pub(super) fn clone_shape(&self) -> Self {
+        Self {
+            f: Vec::new(),
+            specular: None,
+            correction: None,
+            incident: self.incident.clone(),
+            ..*self
+        }
     }
 
     /// The stored coefficient `f^m` at nodes `(o, i)` as a 4×4 matrix.
     pub fn node(&self, m: usize, o: usize, i: usize) -> Mueller {
-        let ns = self.ns;
+        let len = self.ns * self.cols;
         let b = self.offset(m, o, i);
-        unflatten(&self.f[b..b + ns * ns], ns)
+        unflatten(&self.f[b..b + len], self.ns, self.cols)
     }
 
     /// Interpolated `f^m(μ_o, μ_i)`, `m = 0..M`, at the polar angles
@@ -569,7 +273,7 @@ impl WavelengthTable {
         mu_sum: f64,
         what: Interpolant,
     ) -> Vec<Mueller> {
-        let ns2 = self.ns * self.ns;
+        let ns2 = self.ns * self.cols;
         // Tensor-product weights, with (μ_a + μ_b)/(μ_o + μ_i) for (T2).
         let mut weights = Vec::with_capacity(so.len * si.len);
         for a in 0..so.len {
@@ -595,7 +299,7 @@ impl WavelengthTable {
                         *x += w * y;
                     }
                 }
-                unflatten(&acc, self.ns)
+                unflatten(&acc, self.ns, self.cols)
             })
             .collect()
     }
@@ -630,14 +334,15 @@ impl WavelengthTable {
                 mu_of_theta_deg(theta_i_deg),
                 dphi_prop,
             );
-            let ns = self.ns;
-            for (row, drow) in f.iter_mut().zip(&d).take(ns) {
-                for (x, y) in row.iter_mut().zip(drow).take(ns) {
+            for (row, drow) in f.iter_mut().zip(&d).take(self.ns) {
+                for (x, y) in row.iter_mut().zip(drow).take(self.cols) {
                     *x += y;
                 }
             }
         }
-        if self.ns == 4 {
+        // Cloude filtering needs all 16 elements: a block of fewer
+        // (`needs.stokes`) is returned as interpolated.
+        if self.ns == 4 && self.cols == 4 {
             solver::make_realizable(f);
         }
     }
@@ -650,7 +355,9 @@ impl WavelengthTable {
         let st = grid.stencil(theta_i_deg);
         let mut s = [[0.0; 4]; 4];
         for k in 0..st.len {
-            add_scaled(&mut s, &spec[st.start + k], st.w[k]);
+            if st.w[k] != 0.0 {
+                add_scaled(&mut s, &spec[self.incident_position(st.start + k)], st.w[k]);
+            }
         }
         Some(s)
     }
@@ -739,6 +446,8 @@ impl Table {
                     interpolation_error: b.interpolation_error,
                 })
                 .collect(),
+            stokes: plan.needs.stokes,
+            theta_i_deg: plan.needs.theta_i_deg.clone(),
         };
         Ok(Self {
             metadata,
@@ -805,12 +514,17 @@ impl Table {
     /// (incident ray `k = −ω_i`, outgoing `k = ω_o`): interpolation in the
     /// polar cosines (T2), exact Fourier sum (T1) at
     /// `Δφ_prop = φ_o − φ_i − 180°`, linear in wavelength.
+    ///
+    /// A table of part of the incident directions (`needs.theta_i_deg`)
+    /// refuses any other ([`Table::incident_theta`]); elements it does not
+    /// hold (`needs.stokes`) are zero, [`Table::shape`] says which.
     pub fn eval(&self, d: &Directions, wavelength_nm: Option<f64>) -> Result<Mueller, BrdfError> {
         d.validate()?;
+        let theta_i = self.incident_theta(d.theta_i_deg)?;
         let dphi = dphi_prop_rad(d.phi_i_deg, d.phi_o_deg);
         let mut f = [[0.0; 4]; 4];
         for (k, w) in self.wavelength_weights(wavelength_nm)? {
-            let m = self.wavelengths[k].eval(&self.grid, d.theta_i_deg, d.theta_o_deg, dphi);
+            let m = self.wavelengths[k].eval(&self.grid, theta_i, d.theta_o_deg, dphi);
             add_scaled(&mut f, &m, w);
         }
         Ok(f)
@@ -828,6 +542,7 @@ impl Table {
         wavelength_nm: Option<f64>,
     ) -> Result<Option<Mueller>, BrdfError> {
         d.validate()?;
+        let theta_i = self.incident_theta(d.theta_i_deg)?;
         let weights = self.wavelength_weights(wavelength_nm)?;
         if self.wavelengths.iter().all(|w| w.specular.is_none()) {
             return Ok(None);
@@ -837,12 +552,37 @@ impl Table {
         }
         let mut s = [[0.0; 4]; 4];
         for (k, w) in weights {
-            if let Some(m) = self.wavelengths[k].specular_at(&self.grid, d.theta_i_deg) {
+            if let Some(m) = self.wavelengths[k].specular_at(&self.grid, theta_i) {
                 add_scaled(&mut s, &m, w);
             }
         }
         let sigma = dphi_prop_rad(d.phi_i_deg, d.phi_o_deg);
         Ok(Some(mul(&rotation(sigma), &s)))
+    }
+
+    /// The incident polar angle to evaluate a query's `theta_i_deg` at:
+    /// itself when the table covers it, else a query error naming
+    /// `theta_i_deg` and `needs.theta_i_deg` ([`coverage::incident_theta`]).
+    pub fn incident_theta(&self, theta_i_deg: f64) -> Result<f64, BrdfError> {
+        coverage::incident_theta(self.metadata.theta_i_deg.as_ref(), theta_i_deg)
+    }
+
+    /// Rows and columns of the Mueller matrices this table answers with:
+    /// 4 × 4 for the full product (a scalar table's zeros included, as
+    /// always), 4 × 1 for `needs.stokes: "unpolarized_in"`, 1 × 1 for
+    /// `"intensity"`.
+    pub fn shape(&self) -> (usize, usize) {
+        match self.metadata.stokes {
+            StokesNeed::Full => (4, 4),
+            s => s.shape(self.wavelengths.first().map_or(4, |w| w.ns.max(w.cols))),
+        }
+    }
+
+    /// Does the table hold every element at every incident direction (what
+    /// a dense, Mitsuba or render use needs)? Else a query error naming
+    /// `what` and what the table lacks.
+    pub fn require_complete(&self, what: &str) -> Result<(), BrdfError> {
+        coverage::require_complete(self, what)
     }
 
     /// Total number of stored coefficients.

@@ -2,7 +2,7 @@
 //! [--wavelength-nm NM]`: one Mueller BRDF from a table
 //! (docs/table-format.md).
 
-use crate::brdf::export::FRAMES;
+use crate::brdf::export::{FRAMES, mueller_json};
 use crate::brdf::table::{Directions, MIRROR_TOLERANCE_RAD};
 use clap::Args;
 use serde_json::{Value, json};
@@ -50,10 +50,10 @@ pub fn run(a: &EvalArgs) -> Result<Value, String> {
         "wavelength_nm": wl,
         "theta_i_deg": a.theta_i, "phi_i_deg": a.phi_i,
         "theta_o_deg": a.theta_o, "phi_o_deg": a.phi_o,
-        "mueller": m,
+        "mueller": mueller_json(&table, &m),
         "units": "1/sr",
         "frames": FRAMES,
-        "specular": s,
+        "specular": s.map(|s| mueller_json(&table, &s)),
         "specular_note": format!(
             "mirror base only, and only when w_o is within {MIRROR_TOLERANCE_RAD:e} rad of the mirror direction (theta_i, phi_i + 180): S with integral of L_out over the delta = S F_beam (docs/conventions.md §6)"
         ),

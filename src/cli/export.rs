@@ -125,7 +125,7 @@ pub fn run(a: &ExportArgs) -> Result<Value, String> {
                 return Err("--format npy exports the whole table: --points, --theta-i-deg and --wavelength-nm do not apply".into());
             }
             let grid = DenseGrid::default();
-            let d = export::dense(&table, &grid);
+            let d = export::dense(&table, &grid).map_err(|e| e.to_string())?;
             let ty = match a.dtype {
                 Dtype::F32 => NpyType::F32,
                 Dtype::F64 => NpyType::F64,

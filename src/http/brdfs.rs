@@ -17,7 +17,8 @@ use axum::response::{IntoResponse, Response};
 use serde::{Deserialize, Serialize};
 use utoipa::{IntoParams, ToSchema};
 
-/// A material spec (docs/spec.md).
+/// A material spec (docs/spec.md); its optional `needs` member is
+/// `NeedsDocument`.
 #[derive(ToSchema)]
 #[schema(value_type = Object, example = json!({
     "layers": [{"optical_thickness": 1.0, "scatterer": {"rayleigh": {"albedo": 1.0}}}],
@@ -708,6 +709,9 @@ fn dense_bytes(
             ..Default::default()
         };
         use crate::brdf::mitsuba;
+        table
+            .require_complete("the Mitsuba export")
+            .map_err(|e| invalid("format", e.to_string()))?;
         let mt = mitsuba::build(table, &opts).map_err(|e| match e {
             crate::brdf::BrdfError::Query(m) => invalid("resample_wavelengths", m),
             other => invalid("format", other.to_string()),
@@ -746,7 +750,7 @@ fn dense_bytes(
     if q.dtype.is_some() && format != TableFormat::Npy {
         return Err(invalid("dtype", "dtype applies to format=npy only".into()));
     }
-    let d = export::dense(table, &grid);
+    let d = export::dense(table, &grid).map_err(|e| invalid("theta_count", e.to_string()))?;
     match format {
         TableFormat::Npy => {
             let ty = match q.dtype.unwrap_or_default() {

@@ -5,6 +5,7 @@ use super::AppState;
 use super::error::ApiError;
 use super::problem::Problem;
 use super::results::{IMMUTABLE, table_of};
+use crate::brdf::coverage::nested;
 use crate::brdf::export::FRAMES;
 use crate::brdf::{BrdfError, Directions, Table};
 use axum::Json;
@@ -71,11 +72,15 @@ pub struct EvalValue {
     pub theta_o_deg: f64,
     /// Outgoing azimuth (deg).
     pub phi_o_deg: f64,
-    /// Diffuse Mueller BRDF (1/sr), row = outgoing Stokes component.
-    pub mueller: [[f64; 4]; 4],
-    /// Specular matrix `S` (conventions §6) when the base is a mirror and
-    /// the pair is a mirror pair, else `null`.
-    pub specular: Option<[[f64; 4]; 4]>,
+    /// Diffuse Mueller BRDF (1/sr), nested rows, row = outgoing Stokes
+    /// component: 4 × 4, or what the result's `needs.stokes` kept (4 × 1
+    /// `[[m00], [m10], [m20], [m30]]` for `"unpolarized_in"`, 1 × 1
+    /// `[[m00]]` for `"intensity"`).
+    pub mueller: Vec<Vec<f64>>,
+    /// Specular matrix `S` (conventions §6), in the same shape as
+    /// `mueller`, when the base is a mirror and the pair is a mirror pair,
+    /// else `null`.
+    pub specular: Option<Vec<Vec<f64>>>,
 }
 
 /// Answer of the eval endpoints.
@@ -112,6 +117,7 @@ fn evaluate(
     wavelength_nm: Option<f64>,
     prefix: impl Fn(usize) -> String,
 ) -> Result<Vec<EvalValue>, ApiError> {
+    let shape = table.shape();
     let mut out = Vec::with_capacity(points.len());
     for (k, p) in points.iter().enumerate() {
         let d = Directions {
@@ -131,8 +137,8 @@ fn evaluate(
             phi_i_deg: p.phi_i_deg,
             theta_o_deg: p.theta_o_deg,
             phi_o_deg: p.phi_o_deg,
-            mueller,
-            specular,
+            mueller: nested(&mueller, shape),
+            specular: specular.map(|s| nested(&s, shape)),
         });
     }
     Ok(out)
@@ -171,7 +177,7 @@ fn response(
         (status = 200, description = "The BRDF at the pair (one entry in `points`)", body = EvalResponse),
         (status = 404, description = "Unknown id", body = Problem, content_type = "application/problem+json"),
         (status = 409, description = "Not done yet, or failed", body = Problem, content_type = "application/problem+json"),
-        (status = 422, description = "Angle or wavelength out of range; `path` names the parameter", body = Problem, content_type = "application/problem+json"),
+        (status = 422, description = "Angle or wavelength out of range, or an incident angle outside the result's `needs.theta_i_deg`; `path` names the parameter", body = Problem, content_type = "application/problem+json"),
     ),
     security((), ("bearer" = []))
 )]
@@ -213,7 +219,7 @@ pub async fn get_eval(
         (status = 404, description = "Unknown id", body = Problem, content_type = "application/problem+json"),
         (status = 409, description = "Not done yet, or failed", body = Problem, content_type = "application/problem+json"),
         (status = 413, description = "Body over --max-body-bytes", body = Problem, content_type = "application/problem+json"),
-        (status = 422, description = "Malformed body, too many points, angle or wavelength out of range; `path` names the field", body = Problem, content_type = "application/problem+json"),
+        (status = 422, description = "Malformed body, too many points, angle or wavelength out of range, or an incident angle outside the result's `needs.theta_i_deg`; `path` names the field", body = Problem, content_type = "application/problem+json"),
     ),
     security((), ("bearer" = []))
 )]

@@ -18,6 +18,7 @@ pub mod brdfs;
 pub mod config;
 pub mod error;
 pub mod eval;
+pub mod needs_doc;
 pub mod ops;
 pub mod problem;
 pub mod results;
@@ -67,7 +68,13 @@ pub struct AppState(pub Arc<App>);
         license(name = "MIT OR Apache-2.0")
     ),
     modifiers(&BearerAuth),
-    components(schemas(problem::Problem, brdfs::TableFormat, brdfs::DenseType, brdfs::TableBytes)),
+    components(schemas(
+        problem::Problem,
+        brdfs::TableFormat,
+        brdfs::DenseType,
+        brdfs::TableBytes,
+        needs_doc::NeedsDocument
+    )),
     tags(
         (name = "brdfs", description = "Submit specs, follow jobs, fetch results"),
         (name = "operations", description = "Health, readiness, metrics")

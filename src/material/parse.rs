@@ -26,10 +26,12 @@ pub fn parse(text: &str) -> Result<Spec, SpecError> {
     Ok(spec)
 }
 
-/// The spec's arrays: `layers`, `wavelengths_nm` and the Greek coefficients.
-const ARRAYS: [&str; 8] = [
+/// The spec's arrays: `layers`, `wavelengths_nm`, the Greek coefficients
+/// and a list of incident angles (`needs.theta_i_deg`).
+const ARRAYS: [&str; 9] = [
     "layers",
     "wavelengths_nm",
+    "needs.theta_i_deg",
     "layers[].scatterer.expansion.beta",
     "layers[].scatterer.expansion.alpha",
     "layers[].scatterer.expansion.zeta",

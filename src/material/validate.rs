@@ -323,7 +323,7 @@ pub fn validate(spec: &Spec) -> Result<(), SpecError> {
         .solver
         .tolerance
         .filter(|_| spec.solver.streams.is_none());
-    spec.needs.validate(tolerance)
+    spec.needs.validate(tolerance, spec.solver.polarized)
 }
 
 fn validate_material(path: &str, m: &MaterialSpec) -> Result<(), SpecError> {

@@ -260,6 +260,12 @@ pub fn dop_vs_mu_table(
     phis_deg: &[f64],
     e: [f64; 4],
 ) -> Result<Vec<DopSample>, String> {
+    // The degree of polarization needs every outgoing component of the
+    // columns `e` excites (`needs.stokes` of the table's spec).
+    crate::brdf::coverage::require_stokes_in(table, &e, "--stokes").map_err(|e| e.to_string())?;
+    if table.shape().0 < 4 {
+        return Err("the degree of polarization needs the polarized response (rows 1-3 of the Mueller matrix), and this table holds f11 only (needs.stokes = \"intensity\")".into());
+    }
     let mut out = Vec::new();
     for &phi in phis_deg {
         for &mu in mus {

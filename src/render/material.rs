@@ -39,6 +39,8 @@ impl TableBrdf {
     /// Prepare `table` for the channel wavelengths (`None`: the table's only
     /// wavelength); a wavelength outside the table's range is an error.
     pub fn new(table: Arc<Table>, wavelengths_nm: &[Option<f64>]) -> Result<Self, BrdfError> {
+        // Polarized light at any incident direction (`needs` must be full).
+        table.require_complete("rendering")?;
         if wavelengths_nm.is_empty() || wavelengths_nm.len() > MAX_CHANNELS {
             return Err(BrdfError::Query(format!(
                 "1 to {MAX_CHANNELS} channels, got {}",

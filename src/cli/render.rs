@@ -4,13 +4,13 @@
 //! pool with a progress bar on a terminal's stderr, writes the images and
 //! prints a JSON summary.
 
+use super::scene::{load_materials, plan_loaded, resolve, scene_dir};
 use super::source::load_table;
 use crate::brdf::Table;
-use crate::render::{self, Overrides, output, scene};
+use crate::render::{self, Overrides, output, scene, scene_plan};
 use clap::Args;
 use serde_json::{Value, json};
 use std::io::{IsTerminal, Write};
-use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
@@ -61,17 +61,26 @@ pub struct RenderArgs {
     pub no_progress: bool,
 }
 
-/// A path in the scene file: relative to the scene's directory.
-fn resolve(scene_dir: &Path, p: &str) -> String {
-    if super::source::table_url(p).is_some() || Path::new(p).is_absolute() {
-        p.to_string()
-    } else {
-        scene_dir.join(p).to_string_lossy().into_owned()
-    }
-}
-
 fn write(path: &str, bytes: &[u8]) -> Result<(), String> {
     std::fs::write(path, bytes).map_err(|e| format!("{path}: {e}"))
+}
+
+/// Solve sphere `k`'s (reduced, solvable) spec into a table as
+/// `polbrdf solve --table` does (`Table::from_spec_needs`); returns the
+/// table and its per-wavelength metadata.
+fn solve_material(k: usize, spec_json: &str) -> Result<(Table, Value), String> {
+    let at = |e: String| format!("spheres[{k}].material (reduced for the scene): {e}");
+    let spec = crate::material::parse(spec_json).map_err(|e| at(e.to_string()))?;
+    let max = super::solve::default_max_streams();
+    super::solve::check_stream_cap(&spec, max).map_err(|e| at(e.to_string()))?;
+    crate::plan::check_solvable(&spec, max).map_err(|e| at(e.to_string()))?;
+    let options = crate::brdf::table::BuildOptions {
+        max_streams: max,
+        on_progress: &|_, _, _| {},
+    };
+    let t = Table::from_spec_needs(&spec, &options).map_err(|e| at(e.to_string()))?;
+    let info = serde_json::to_value(&t.metadata.wavelengths).expect("JSON");
+    Ok((t, info))
 }
 
 /// Run `render`.
@@ -98,26 +107,54 @@ pub fn run(a: &RenderArgs) -> Result<Value, String> {
     {
         return Err(format!("--exposure {e} must be > 0"));
     }
-    let scene_dir: PathBuf = Path::new(&a.scene)
-        .parent()
-        .map(Path::to_path_buf)
-        .unwrap_or_default();
+    let scene_dir = scene_dir(&a.scene);
 
-    // Tables: each distinct source once.
+    // Tables: each distinct source once; material specs solved locally
+    // for what the scene needs (`render::scene_plan`), each distinct
+    // reduced spec once.
+    let materials = load_materials(&desc, &scene_dir).map_err(|e| format!("{}: {e}", a.scene))?;
+    let plan = if materials.iter().any(Option::is_some) {
+        let p =
+            plan_loaded(&desc, &materials, &scene_dir).map_err(|e| format!("{}: {e}", a.scene))?;
+        if p.wavelengths_nm.iter().all(Option::is_some) {
+            desc.wavelengths_nm = Some(p.wavelengths_nm.iter().flatten().copied().collect());
+        }
+        Some(p)
+    } else {
+        None
+    };
+    let t_solve = Instant::now();
     let mut loaded: Vec<(String, Arc<Table>)> = Vec::new();
     let mut tables = Vec::new();
+    let mut solved = Vec::new();
     for (k, s) in desc.spheres.iter().enumerate() {
-        let src = resolve(&scene_dir, &s.table);
-        let t = match loaded.iter().find(|(p, _)| *p == src) {
+        let (key, what) = match (s.source(), &plan) {
+            (scene::SurfaceSource::Table(t), _) => (resolve(&scene_dir, t), None),
+            (scene::SurfaceSource::Material(_), Some(p)) => {
+                let reduced = p.materials[k].spec.as_ref().expect("a material entry");
+                let spec = scene_plan::solvable_spec(reduced).to_string();
+                (format!("spec:{spec}"), Some(spec))
+            }
+            (scene::SurfaceSource::Material(_), None) => unreachable!("planned"),
+        };
+        let t = match loaded.iter().find(|(p, _)| *p == key) {
             Some((_, t)) => t.clone(),
             None => {
-                let t = Arc::new(load_table(&src).map_err(|e| format!("spheres[{k}].table: {e}"))?);
-                loaded.push((src.clone(), t.clone()));
+                let t = Arc::new(match &what {
+                    None => load_table(&key).map_err(|e| format!("spheres[{k}].table: {e}"))?,
+                    Some(spec) => {
+                        let (t, info) = solve_material(k, spec)?;
+                        solved.push(json!({"name": scene::sphere_name(&desc, k), "id": t.metadata.spec_hash, "wavelengths": info}));
+                        t
+                    }
+                });
+                loaded.push((key, t.clone()));
                 t
             }
         };
         tables.push(t);
     }
+    let solve_s = t_solve.elapsed().as_secs_f64();
     let env = match &desc.environment {
         Some(scene::EnvironmentDesc::Equirectangular { path, .. }) => {
             let p = resolve(&scene_dir, path);
@@ -214,7 +251,8 @@ pub fn run(a: &RenderArgs) -> Result<Value, String> {
         "threads": rayon::current_num_threads(),
         "exposure": exposure,
         "dop_max": a.dop_max,
-        "time_s": {"load": load_s, "render": render_s, "write": write_s, "total": t0.elapsed().as_secs_f64()},
+        "solved": solved,
+        "time_s": {"solve": solve_s, "load": load_s, "render": render_s, "write": write_s, "total": t0.elapsed().as_secs_f64()},
         "objects": render::object_statistics(&scene, &img),
         "files": files,
     }))

@@ -10,7 +10,11 @@
 mod common;
 
 use common::{ok, run, scratch_dir};
-use polbrdf::render::scene_plan::solvable_spec;
+use polbrdf::plan::StreamPolicy;
+use polbrdf::render::scene_plan::{
+    MEASURED_TIMES_MS, STOKES_NEED_ACCEPTED, model_streams_for_tolerance, solvable_spec,
+    solve_time_ms, solves,
+};
 use serde_json::{Value, json};
 use std::path::Path;
 
@@ -503,5 +507,51 @@ fn a_material_renders_as_its_table() {
             assert!(fa == fb, "{f} differs (tolerance {tolerance:?})");
         }
         assert_eq!(a["objects"], b["objects"]);
+    }
+}
+
+// The cost model and the stokes switch (`polbrdf::render::scene_plan`).
+
+#[test]
+fn model_time_passes_through_the_measured_points() {
+    for &(n, t) in &MEASURED_TIMES_MS {
+        assert!((solve_time_ms(n) - t).abs() < 1e-9 * t, "{n}");
+    }
+    assert!(solve_time_ms(12) > 32.8 && solve_time_ms(12) < 60.2);
+    assert!(solve_time_ms(128) > 1347.0 && solve_time_ms(4) < 32.8);
+    // Below 8 streams with the 8–16 slope: 32.8 (4/8)^log2(60.2/32.8).
+    let expect = 32.8 * 0.5f64.powf((60.2f64 / 32.8).log2());
+    assert!((solve_time_ms(4) - expect).abs() < 1e-9);
+}
+
+#[test]
+fn tolerances_pick_streams_like_the_measured_ladder() {
+    // 9.1e-4 ≤ 1e-2 at 4 streams.
+    assert_eq!(model_streams_for_tolerance(1e-2), 4);
+    // 8 streams: estimate 5.0e-5 and last change 2.5e-4 ≤ 3e-4.
+    assert_eq!(model_streams_for_tolerance(1e-4), 8);
+    // 16 streams: 4.3e-7 ≤ 1e-5, last change 2.7e-5 ≤ 3e-5.
+    assert_eq!(model_streams_for_tolerance(1e-5), 16);
+    // 32 streams: 2.8e-9 ≤ 1e-7, last change 1.7e-7 ≤ 3e-7.
+    assert_eq!(model_streams_for_tolerance(1e-7), 32);
+    // 1e-8: at 32 the last change 1.7e-7 > 3e-8; at 64 (2^-6 per
+    // doubling) 4.4e-11 and 2.9e-9.
+    assert_eq!(model_streams_for_tolerance(1e-8), 64);
+    assert_eq!(
+        solves(&StreamPolicy::Tolerance(1e-4), true),
+        vec![2, 3, 4, 6, 8]
+    );
+    assert_eq!(solves(&StreamPolicy::Fixed(16), true), vec![8, 12, 16]);
+    assert_eq!(solves(&StreamPolicy::Fixed(16), false), vec![16]);
+}
+
+#[test]
+fn the_stokes_need_leaves_the_solvable_spec_until_accepted() {
+    let reduced = json!({"layers": [], "needs": {"stokes": "unpolarized_in"}});
+    let s = solvable_spec(&reduced);
+    if STOKES_NEED_ACCEPTED {
+        assert_eq!(s, reduced);
+    } else {
+        assert_eq!(s, json!({"layers": []}));
     }
 }

@@ -255,7 +255,9 @@ fn unpolarized_in_is_what_the_renderer_uses() {
     scale_polarized_columns(&mut first_column, 0.0);
     let render = |v: &Value, t: &polbrdf::brdf::Table| {
         let desc = scene::parse(&v.to_string()).unwrap();
-        let tables = vec![Arc::new(t.clone()); desc.spheres.len()];
+        // Every sphere shares the one table.
+        let shared = Arc::new(t.clone());
+        let tables: Vec<_> = desc.spheres.iter().map(|_| shared.clone()).collect();
         build(&desc, &tables, None).unwrap().render(&|_, _| {}).data
     };
     let mut polarized_light = one_sphere(rayleigh_spec());

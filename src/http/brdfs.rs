@@ -62,7 +62,8 @@ pub struct Links {
 }
 
 impl Links {
-    fn of(id: &str) -> Self {
+    /// The links of result `id`.
+    pub(crate) fn of(id: &str) -> Self {
         Self {
             self_: format!("/v1/brdfs/{id}"),
             table: format!("/v1/brdfs/{id}/table"),
@@ -286,12 +287,7 @@ pub async fn create_brdf(
         })
     })?;
     let spec = material::parse(text).map_err(ApiError::InvalidSpec)?;
-    check_limits(&spec, &state.0.config.limits)?;
-    plan::check_solvable(&spec, state.0.config.limits.max_streams)
-        .map_err(ApiError::InvalidSpec)?;
-    let (canonical_json, id) = plan::id_of_spec(&spec);
-    tracing::debug!(%id, "submission");
-    match state.0.jobs.submit(&spec, &canonical_json, &id).await? {
+    match submit(&state, &spec).await? {
         Submission::Cached(row) => {
             let mut res = Json(BrdfResource::of(&row)).into_response();
             res.headers_mut()
@@ -310,6 +306,28 @@ pub async fn create_brdf(
             Ok(res)
         }
     }
+}
+
+/// What `POST /v1/brdfs` does with a parsed spec: the service caps, the
+/// checks before solving, the id, and the job (cached, joined or queued).
+/// `POST /v1/scenes` submits each material's reduced request through it.
+pub(crate) async fn submit(state: &AppState, spec: &Spec) -> Result<Submission, ApiError> {
+    check_limits(spec, &state.0.config.limits)?;
+    plan::check_solvable(spec, state.0.config.limits.max_streams).map_err(ApiError::InvalidSpec)?;
+    let (canonical_json, id) = plan::id_of_spec(spec);
+    tracing::debug!(%id, "submission");
+    Ok(state.0.jobs.submit(spec, &canonical_json, &id).await?)
+}
+
+/// [`submit`], answered as the id and its job state.
+pub(crate) async fn submit_spec(
+    state: &AppState,
+    spec: &Spec,
+) -> Result<(String, JobStatus), ApiError> {
+    Ok(match submit(state, spec).await? {
+        Submission::Cached(row) => (row.id.clone(), row.status.into()),
+        Submission::Pending { id, status } => (id, status.into()),
+    })
 }
 
 /// One entry of the cache listing.

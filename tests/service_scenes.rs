@@ -116,3 +116,40 @@ async fn a_scene_submits_its_reduced_requests() {
     assert_eq!(code, 422, "{p}");
     assert_eq!(p["path"], "camera.fov_deg", "{p}");
 }
+
+/// `polbrdf render --server URL` solves the material spheres on the
+/// service and renders exactly what the local solve renders.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn render_with_a_server_equals_the_local_render() {
+    let d = TempDir::new("service-scenes-render");
+    let s = Server::start(&d.0.join("data"), &[], &[]);
+    let url = s.url("");
+    let dir = d.0.clone();
+    tokio::task::spawn_blocking(move || {
+        std::fs::write(dir.join("paint.json"), rayleigh_spec(0.9).to_string()).unwrap();
+        let mut v = scene();
+        v["spheres"] = json!([
+            {"center": [0, 0, 1], "radius": 1, "material": "paint.json"},
+            {"center": [2, 0, 1], "radius": 1, "material": rayleigh_spec(1.0)}
+        ]);
+        let p = dir.join("scene.json");
+        std::fs::write(&p, v.to_string()).unwrap();
+        let p = p.to_string_lossy().into_owned();
+        let (a, b) = (
+            dir.join("a").to_string_lossy().into_owned(),
+            dir.join("b").to_string_lossy().into_owned(),
+        );
+        let remote = common::ok(&["render", &p, "-o", &a, "--no-progress", "--server", &url]);
+        let local = common::ok(&["render", &p, "-o", &b, "--no-progress"]);
+        assert!(
+            remote["solved"].as_array().unwrap().is_empty(),
+            "solved remotely"
+        );
+        assert_eq!(local["solved"].as_array().unwrap().len(), 2);
+        let ra = std::fs::read(format!("{a}_stokes.npy")).unwrap();
+        let rb = std::fs::read(format!("{b}_stokes.npy")).unwrap();
+        assert!(ra == rb, "remote and local renders differ");
+    })
+    .await
+    .unwrap();
+}

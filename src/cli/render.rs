@@ -59,6 +59,10 @@ pub struct RenderArgs {
     /// No progress bar even on a terminal.
     #[arg(long)]
     pub no_progress: bool,
+    /// Solve the material spheres on this service (`POST /v1/scenes`,
+    /// waiting for the jobs) instead of locally, e.g. http://127.0.0.1:8080.
+    #[arg(long)]
+    pub server: Option<String>,
 }
 
 fn write(path: &str, bytes: &[u8]) -> Result<(), String> {
@@ -81,6 +85,89 @@ fn solve_material(k: usize, spec_json: &str) -> Result<(Table, Value), String> {
     let t = Table::from_spec_needs(&spec, &options).map_err(|e| at(e.to_string()))?;
     let info = serde_json::to_value(&t.metadata.wavelengths).expect("JSON");
     Ok((t, info))
+}
+
+/// `POST /v1/scenes` with the scene (`text`, its material specs inlined and
+/// the command line's wavelengths and bounces, which decide the needs),
+/// wait until every job is done, and return per sphere the URL of its
+/// result (`None` for table spheres).
+fn solve_on_server(
+    server: &str,
+    text: &str,
+    desc: &scene::SceneDesc,
+    materials: &[Option<scene_plan::MaterialInput>],
+) -> Result<Vec<Option<String>>, String> {
+    let base = server.trim_end_matches('/');
+    let mut doc: Value = serde_json::from_str(text).map_err(|e| e.to_string())?;
+    for (k, m) in materials.iter().enumerate() {
+        if let Some(m) = m {
+            doc["spheres"][k]["material"] = m.json.clone();
+        }
+    }
+    doc["max_bounces"] = json!(desc.max_bounces);
+    if let Some(w) = &desc.wavelengths_nm {
+        doc["wavelengths_nm"] = json!(w);
+    }
+    let agent: ureq::Agent = ureq::Agent::config_builder()
+        .timeout_global(Some(std::time::Duration::from_secs(60)))
+        .http_status_as_error(false)
+        .build()
+        .into();
+    let at = |e: String| format!("--server {base}: {e}");
+    let call =
+        |r: Result<ureq::http::Response<ureq::Body>, ureq::Error>| -> Result<(u16, Value), String> {
+            let mut r = r.map_err(|e| at(e.to_string()))?;
+            let code = r.status().as_u16();
+            let body = r
+                .body_mut()
+                .read_to_string()
+                .map_err(|e| at(e.to_string()))?;
+            Ok((
+                code,
+                serde_json::from_str(&body).unwrap_or(Value::String(body)),
+            ))
+        };
+    let (code, v) = call(
+        agent
+            .post(&format!("{base}/v1/scenes"))
+            .header("content-type", "application/json")
+            .send(doc.to_string()),
+    )?;
+    if code != 200 && code != 202 {
+        return Err(at(format!("POST /v1/scenes: HTTP {code}: {v}")));
+    }
+    let entries = v["materials"].as_array().cloned().unwrap_or_default();
+    let started = Instant::now();
+    for e in &entries {
+        let id = e["id"]
+            .as_str()
+            .ok_or_else(|| at(format!("no id in {e}")))?;
+        loop {
+            let (code, r) = call(agent.get(&format!("{base}/v1/brdfs/{id}")).call())?;
+            match r["status"].as_str() {
+                Some("done") => break,
+                Some("failed") => {
+                    return Err(at(format!("{}: the job failed: {}", e["name"], r["error"])));
+                }
+                _ if code != 200 => {
+                    return Err(at(format!("GET /v1/brdfs/{id}: HTTP {code}: {r}")));
+                }
+                _ if started.elapsed().as_secs() > 3600 => {
+                    return Err(at(format!("{id}: not done after an hour")));
+                }
+                _ => std::thread::sleep(std::time::Duration::from_millis(200)),
+            }
+        }
+    }
+    let mut ids = entries.iter().map(|e| e["id"].as_str().unwrap_or_default());
+    Ok(materials
+        .iter()
+        .map(|m| {
+            m.as_ref()
+                .and_then(|_| ids.next())
+                .map(|id| format!("{base}/v1/brdfs/{id}"))
+        })
+        .collect())
 }
 
 /// Run `render`.
@@ -112,6 +199,18 @@ pub fn run(a: &RenderArgs) -> Result<Value, String> {
     // Tables: each distinct source once; material specs solved locally
     // for what the scene needs (`render::scene_plan`), each distinct
     // reduced spec once.
+    let materials = load_materials(&desc, &scene_dir).map_err(|e| format!("{}: {e}", a.scene))?;
+    if let Some(server) = &a.server
+        && materials.iter().any(Option::is_some)
+    {
+        let urls = solve_on_server(server, &text, &desc, &materials)?;
+        for (s, url) in desc.spheres.iter_mut().zip(urls) {
+            if let Some(u) = url {
+                s.material = None;
+                s.table = Some(u);
+            }
+        }
+    }
     let materials = load_materials(&desc, &scene_dir).map_err(|e| format!("{}: {e}", a.scene))?;
     let plan = if materials.iter().any(Option::is_some) {
         let p =

@@ -9,6 +9,7 @@ pub mod mie;
 pub mod plot;
 pub mod progress;
 pub mod render;
+pub mod scene;
 pub mod serve;
 pub mod solve;
 pub mod source;
@@ -56,8 +57,11 @@ enum Command {
     /// numbers as CSV.
     #[command(subcommand)]
     Plot(plot::PlotCommand),
-    /// Polarized preview renderer (spheres with BRDF tables on a floor).
+    /// Polarized preview renderer (spheres with BRDF tables or material specs on a floor).
     Render(render::RenderArgs),
+    /// Render scenes: what a scene needs of its materials (`scene plan`).
+    #[command(subcommand)]
+    Scene(scene::SceneCommand),
     /// Run the HTTP service (docs/service.md).
     Serve(serve::ServeArgs),
     /// Benchmarks (timings go to docs/performance.md).
@@ -77,6 +81,7 @@ pub fn main() -> i32 {
         Command::Bench(b) => bench::run(&b),
         Command::Plot(a) => plot::run(&a),
         Command::Render(a) => render::run(&a),
+        Command::Scene(c) => scene::run(&c),
         Command::Serve(a) => return serve::main(&a),
     };
     match result {

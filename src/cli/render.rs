@@ -4,13 +4,13 @@
 //! pool with a progress bar on a terminal's stderr, writes the images and
 //! prints a JSON summary.
 
+use super::scene::{load_materials, plan_loaded, resolve, scene_dir};
 use super::source::load_table;
 use crate::brdf::Table;
-use crate::render::{self, Overrides, output, scene};
+use crate::render::{self, Overrides, output, scene, scene_plan};
 use clap::Args;
 use serde_json::{Value, json};
 use std::io::{IsTerminal, Write};
-use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
@@ -59,19 +59,115 @@ pub struct RenderArgs {
     /// No progress bar even on a terminal.
     #[arg(long)]
     pub no_progress: bool,
-}
-
-/// A path in the scene file: relative to the scene's directory.
-fn resolve(scene_dir: &Path, p: &str) -> String {
-    if super::source::table_url(p).is_some() || Path::new(p).is_absolute() {
-        p.to_string()
-    } else {
-        scene_dir.join(p).to_string_lossy().into_owned()
-    }
+    /// Solve the material spheres on this service (`POST /v1/scenes`,
+    /// waiting for the jobs) instead of locally, e.g. http://127.0.0.1:8080.
+    #[arg(long)]
+    pub server: Option<String>,
 }
 
 fn write(path: &str, bytes: &[u8]) -> Result<(), String> {
     std::fs::write(path, bytes).map_err(|e| format!("{path}: {e}"))
+}
+
+/// Solve sphere `k`'s (reduced, solvable) spec into a table as
+/// `polbrdf solve --table` does (`Table::from_spec_needs`); returns the
+/// table and its per-wavelength metadata.
+fn solve_material(k: usize, spec_json: &str) -> Result<(Table, Value), String> {
+    let at = |e: String| format!("spheres[{k}].material (reduced for the scene): {e}");
+    let spec = crate::material::parse(spec_json).map_err(|e| at(e.to_string()))?;
+    let max = super::solve::default_max_streams();
+    super::solve::check_stream_cap(&spec, max).map_err(|e| at(e.to_string()))?;
+    crate::plan::check_solvable(&spec, max).map_err(|e| at(e.to_string()))?;
+    let options = crate::brdf::table::BuildOptions {
+        max_streams: max,
+        on_progress: &|_, _, _| {},
+    };
+    let t = Table::from_spec_needs(&spec, &options).map_err(|e| at(e.to_string()))?;
+    let info = serde_json::to_value(&t.metadata.wavelengths).expect("JSON");
+    Ok((t, info))
+}
+
+/// `POST /v1/scenes` with the scene (`text`, its material specs inlined and
+/// the command line's wavelengths and bounces, which decide the needs),
+/// wait until every job is done, and return per sphere the URL of its
+/// result (`None` for table spheres).
+fn solve_on_server(
+    server: &str,
+    text: &str,
+    desc: &scene::SceneDesc,
+    materials: &[Option<scene_plan::MaterialInput>],
+) -> Result<Vec<Option<String>>, String> {
+    let base = server.trim_end_matches('/');
+    let mut doc: Value = serde_json::from_str(text).map_err(|e| e.to_string())?;
+    for (k, m) in materials.iter().enumerate() {
+        if let Some(m) = m {
+            doc["spheres"][k]["material"] = m.json.clone();
+        }
+    }
+    doc["max_bounces"] = json!(desc.max_bounces);
+    if let Some(w) = &desc.wavelengths_nm {
+        doc["wavelengths_nm"] = json!(w);
+    }
+    let agent: ureq::Agent = ureq::Agent::config_builder()
+        .timeout_global(Some(std::time::Duration::from_secs(60)))
+        .http_status_as_error(false)
+        .build()
+        .into();
+    let at = |e: String| format!("--server {base}: {e}");
+    let call =
+        |r: Result<ureq::http::Response<ureq::Body>, ureq::Error>| -> Result<(u16, Value), String> {
+            let mut r = r.map_err(|e| at(e.to_string()))?;
+            let code = r.status().as_u16();
+            let body = r
+                .body_mut()
+                .read_to_string()
+                .map_err(|e| at(e.to_string()))?;
+            Ok((
+                code,
+                serde_json::from_str(&body).unwrap_or(Value::String(body)),
+            ))
+        };
+    let (code, v) = call(
+        agent
+            .post(&format!("{base}/v1/scenes"))
+            .header("content-type", "application/json")
+            .send(doc.to_string()),
+    )?;
+    if code != 200 && code != 202 {
+        return Err(at(format!("POST /v1/scenes: HTTP {code}: {v}")));
+    }
+    let entries = v["materials"].as_array().cloned().unwrap_or_default();
+    let started = Instant::now();
+    for e in &entries {
+        let id = e["id"]
+            .as_str()
+            .ok_or_else(|| at(format!("no id in {e}")))?;
+        loop {
+            let (code, r) = call(agent.get(&format!("{base}/v1/brdfs/{id}")).call())?;
+            match r["status"].as_str() {
+                Some("done") => break,
+                Some("failed") => {
+                    return Err(at(format!("{}: the job failed: {}", e["name"], r["error"])));
+                }
+                _ if code != 200 => {
+                    return Err(at(format!("GET /v1/brdfs/{id}: HTTP {code}: {r}")));
+                }
+                _ if started.elapsed().as_secs() > 3600 => {
+                    return Err(at(format!("{id}: not done after an hour")));
+                }
+                _ => std::thread::sleep(std::time::Duration::from_millis(200)),
+            }
+        }
+    }
+    let mut ids = entries.iter().map(|e| e["id"].as_str().unwrap_or_default());
+    Ok(materials
+        .iter()
+        .map(|m| {
+            m.as_ref()
+                .and_then(|_| ids.next())
+                .map(|id| format!("{base}/v1/brdfs/{id}"))
+        })
+        .collect())
 }
 
 /// Run `render`.
@@ -98,26 +194,66 @@ pub fn run(a: &RenderArgs) -> Result<Value, String> {
     {
         return Err(format!("--exposure {e} must be > 0"));
     }
-    let scene_dir: PathBuf = Path::new(&a.scene)
-        .parent()
-        .map(Path::to_path_buf)
-        .unwrap_or_default();
+    let scene_dir = scene_dir(&a.scene);
 
-    // Tables: each distinct source once.
+    // Tables: each distinct source once; material specs solved locally
+    // for what the scene needs (`render::scene_plan`), each distinct
+    // reduced spec once.
+    let materials = load_materials(&desc, &scene_dir).map_err(|e| format!("{}: {e}", a.scene))?;
+    if let Some(server) = &a.server
+        && materials.iter().any(Option::is_some)
+    {
+        let urls = solve_on_server(server, &text, &desc, &materials)?;
+        for (s, url) in desc.spheres.iter_mut().zip(urls) {
+            if let Some(u) = url {
+                s.material = None;
+                s.table = Some(u);
+            }
+        }
+    }
+    let materials = load_materials(&desc, &scene_dir).map_err(|e| format!("{}: {e}", a.scene))?;
+    let plan = if materials.iter().any(Option::is_some) {
+        let p =
+            plan_loaded(&desc, &materials, &scene_dir).map_err(|e| format!("{}: {e}", a.scene))?;
+        if p.wavelengths_nm.iter().all(Option::is_some) {
+            desc.wavelengths_nm = Some(p.wavelengths_nm.iter().flatten().copied().collect());
+        }
+        Some(p)
+    } else {
+        None
+    };
+    let t_solve = Instant::now();
     let mut loaded: Vec<(String, Arc<Table>)> = Vec::new();
     let mut tables = Vec::new();
+    let mut solved = Vec::new();
     for (k, s) in desc.spheres.iter().enumerate() {
-        let src = resolve(&scene_dir, &s.table);
-        let t = match loaded.iter().find(|(p, _)| *p == src) {
+        let (key, what) = match (s.source(), &plan) {
+            (scene::SurfaceSource::Table(t), _) => (resolve(&scene_dir, t), None),
+            (scene::SurfaceSource::Material(_), Some(p)) => {
+                let reduced = p.materials[k].spec.as_ref().expect("a material entry");
+                let spec = scene_plan::solvable_spec(reduced).to_string();
+                (format!("spec:{spec}"), Some(spec))
+            }
+            (scene::SurfaceSource::Material(_), None) => unreachable!("planned"),
+        };
+        let t = match loaded.iter().find(|(p, _)| *p == key) {
             Some((_, t)) => t.clone(),
             None => {
-                let t = Arc::new(load_table(&src).map_err(|e| format!("spheres[{k}].table: {e}"))?);
-                loaded.push((src.clone(), t.clone()));
+                let t = Arc::new(match &what {
+                    None => load_table(&key).map_err(|e| format!("spheres[{k}].table: {e}"))?,
+                    Some(spec) => {
+                        let (t, info) = solve_material(k, spec)?;
+                        solved.push(json!({"name": scene::sphere_name(&desc, k), "id": t.metadata.spec_hash, "wavelengths": info}));
+                        t
+                    }
+                });
+                loaded.push((key, t.clone()));
                 t
             }
         };
         tables.push(t);
     }
+    let solve_s = t_solve.elapsed().as_secs_f64();
     let env = match &desc.environment {
         Some(scene::EnvironmentDesc::Equirectangular { path, .. }) => {
             let p = resolve(&scene_dir, path);
@@ -214,7 +350,8 @@ pub fn run(a: &RenderArgs) -> Result<Value, String> {
         "threads": rayon::current_num_threads(),
         "exposure": exposure,
         "dop_max": a.dop_max,
-        "time_s": {"load": load_s, "render": render_s, "write": write_s, "total": t0.elapsed().as_secs_f64()},
+        "solved": solved,
+        "time_s": {"solve": solve_s, "load": load_s, "render": render_s, "write": write_s, "total": t0.elapsed().as_secs_f64()},
         "objects": render::object_statistics(&scene, &img),
         "files": files,
     }))

@@ -63,7 +63,8 @@ pub struct Links {
 }
 
 impl Links {
-    fn of(id: &str) -> Self {
+    /// The links of result `id`.
+    pub(crate) fn of(id: &str) -> Self {
         Self {
             self_: format!("/v1/brdfs/{id}"),
             table: format!("/v1/brdfs/{id}/table"),
@@ -298,12 +299,7 @@ pub async fn create_brdf(
         })
     })?;
     let spec = material::parse(text).map_err(ApiError::InvalidSpec)?;
-    check_limits(&spec, &state.0.config.limits)?;
-    plan::check_solvable(&spec, state.0.config.limits.max_streams)
-        .map_err(ApiError::InvalidSpec)?;
-    let (canonical_json, id) = plan::id_of_spec(&spec);
-    tracing::debug!(%id, "submission");
-    match state.0.jobs.submit(&spec, &canonical_json, &id).await? {
+    match submit(&state, &spec).await? {
         Submission::Cached { row, covered_by } => {
             let mut resource = BrdfResource::of(&row);
             resource.covered_by = Some(covered_by);
@@ -329,6 +325,33 @@ pub async fn create_brdf(
             Ok(res)
         }
     }
+}
+
+/// What `POST /v1/brdfs` does with a parsed spec: the service caps, the
+/// checks before solving, the id, and the job (cached, joined or queued).
+/// `POST /v1/scenes` submits each material's reduced request through it.
+pub(crate) async fn submit(state: &AppState, spec: &Spec) -> Result<Submission, ApiError> {
+    check_limits(spec, &state.0.config.limits)?;
+    plan::check_solvable(spec, state.0.config.limits.max_streams).map_err(ApiError::InvalidSpec)?;
+    let (canonical_json, id) = plan::id_of_spec(spec);
+    tracing::debug!(%id, "submission");
+    Ok(state.0.jobs.submit(spec, &canonical_json, &id).await?)
+}
+
+/// [`submit`], answered as the id, its job state and the cached results it
+/// was answered from (`covered_by`, docs/service.md).
+pub(crate) async fn submit_spec(
+    state: &AppState,
+    spec: &Spec,
+) -> Result<(String, JobStatus, Vec<String>), ApiError> {
+    Ok(match submit(state, spec).await? {
+        Submission::Cached { row, covered_by } => (row.id.clone(), row.status.into(), covered_by),
+        Submission::Pending {
+            id,
+            status,
+            covered_by,
+        } => (id, status.into(), covered_by),
+    })
 }
 
 /// One entry of the cache listing.

@@ -11,6 +11,8 @@
 //! * The routes that read results ([`brdfs`], [`eval`]) share [`results`]:
 //!   the row of an id (its version and status checked), its verified bytes
 //!   and its parsed table.
+//! * [`scenes`]: `POST /v1/scenes`, a render scene's materials submitted
+//!   through the path of `POST /v1/brdfs` as their reduced requests.
 //! * [`serve`] opens the storage, starts the workers, binds, and shuts down
 //!   gracefully when its `shutdown` future resolves.
 
@@ -22,6 +24,7 @@ pub mod needs_doc;
 pub mod ops;
 pub mod problem;
 pub mod results;
+pub mod scenes;
 
 pub use config::{Config, Limits, LogFormat};
 pub use error::ApiError;
@@ -77,6 +80,7 @@ pub struct AppState(pub Arc<App>);
     )),
     tags(
         (name = "brdfs", description = "Submit specs, follow jobs, fetch results"),
+        (name = "scenes", description = "Submit the materials of a render scene, reduced to what it needs"),
         (name = "operations", description = "Health, readiness, metrics")
     )
 )]
@@ -100,6 +104,7 @@ pub fn routes() -> OpenApiRouter<AppState> {
         .routes(api!(brdfs::create_brdf, brdfs::list_brdfs))
         .routes(api!(brdfs::get_brdf))
         .routes(api!(brdfs::get_table))
+        .routes(api!(scenes::create_scene))
         .routes(api!(eval::get_eval, eval::post_eval))
         .routes(api!(ops::healthz))
         .routes(api!(ops::readyz))

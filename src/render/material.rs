@@ -39,8 +39,16 @@ impl TableBrdf {
     /// Prepare `table` for the channel wavelengths (`None`: the table's only
     /// wavelength); a wavelength outside the table's range is an error.
     pub fn new(table: Arc<Table>, wavelengths_nm: &[Option<f64>]) -> Result<Self, BrdfError> {
-        // Polarized light at any incident direction (`needs` must be full).
-        table.require_complete("rendering")?;
+        // Light at any incident direction; polarized light too unless the
+        // table is `needs.stokes: "unpolarized_in"`, which the scene planner
+        // (`render::scene_plan`) asks for only when no polarized light can
+        // reach the sphere: then its columns 1-3 (zero here) meet only zero
+        // Stokes components.
+        if table.metadata.theta_i_deg.is_some()
+            || table.metadata.stokes == crate::material::needs::StokesNeed::Intensity
+        {
+            table.require_complete("rendering")?;
+        }
         if wavelengths_nm.is_empty() || wavelengths_nm.len() > MAX_CHANNELS {
             return Err(BrdfError::Query(format!(
                 "1 to {MAX_CHANNELS} channels, got {}",
@@ -125,7 +133,9 @@ impl TableBrdf {
         let mut per_block = [[[0.0; 4]; 4]; MAX_CHANNELS];
         for (slot, &b) in self.blocks.iter().enumerate() {
             let wt = &t.wavelengths[b];
-            let (ns, ns2) = (wt.ns, wt.ns * wt.ns);
+            // Rows × columns stored per node (4 × 1 for `unpolarized_in`).
+            let (ns, cols) = (wt.ns, wt.cols);
+            let ns2 = ns * cols;
             let mut f = [[0.0; 4]; 4];
             let (mut cm, mut sm) = (1.0f64, 0.0f64);
             for m in 0..wt.orders {
@@ -139,8 +149,8 @@ impl TableBrdf {
                 let norm = if m == 0 { 1.0 } else { 2.0 } / (2.0 * PI);
                 let (wc, ws) = (norm * cm, norm * sm);
                 for p in 0..ns {
-                    for q in 0..ns {
-                        let v = acc[p * ns + q];
+                    for q in 0..cols {
+                        let v = acc[p * cols + q];
                         f[p][q] += match (p < 2, q < 2) {
                             (true, true) | (false, false) => v * wc,
                             (false, true) => v * ws,

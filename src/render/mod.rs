@@ -8,6 +8,7 @@
 //! docs/render.md has the scene format, the frames and the outputs.
 //!
 //! * [`scene`]: the scene file (parse + validate, no I/O).
+//! * [`scene_plan`]: what a scene needs of its material specs (`scene plan`).
 //! * [`integrator`]: the scene at render time and the path tracer.
 //! * [`material`]: table BRDFs at the image's wavelengths (the hot path).
 //! * [`polarization`]: Stokes frames along rays, rotations, the polarizer.
@@ -21,6 +22,7 @@ pub mod output;
 pub mod polarization;
 pub mod sampling;
 pub mod scene;
+pub mod scene_plan;
 
 use crate::brdf::Table;
 use crate::physics::stokes::degree_of_polarization;
@@ -83,17 +85,26 @@ impl Overrides {
 /// else from the first sphere's table: its three wavelengths if it has
 /// exactly three (an RGB image), otherwise its first wavelength.
 pub fn channel_wavelengths(desc: &SceneDesc, tables: &[Arc<Table>]) -> Vec<Option<f64>> {
-    if let Some(w) = &desc.wavelengths_nm {
-        let mut w = w.clone();
+    let first: Option<Vec<Option<f64>>> = tables
+        .first()
+        .map(|t| t.wavelengths.iter().map(|w| w.wavelength_nm).collect());
+    channels_from(desc.wavelengths_nm.as_deref(), first.as_deref())
+}
+
+/// The rule of [`channel_wavelengths`] given the scene's `wavelengths_nm`
+/// and the first sphere's wavelengths (its table's or its spec's; `None`:
+/// no spheres).
+pub fn channels_from(scene_nm: Option<&[f64]>, first: Option<&[Option<f64>]>) -> Vec<Option<f64>> {
+    if let Some(w) = scene_nm {
+        let mut w = w.to_vec();
         w.sort_by(f64::total_cmp);
         return w.into_iter().map(Some).collect();
     }
-    let Some(first) = tables.first() else {
+    let Some(wls) = first.filter(|w| !w.is_empty()) else {
         return vec![None];
     };
-    let wls: Vec<Option<f64>> = first.wavelengths.iter().map(|w| w.wavelength_nm).collect();
     if wls.len() == 3 && wls.iter().all(Option::is_some) {
-        wls
+        wls.to_vec()
     } else {
         vec![wls[0]]
     }
@@ -209,7 +220,7 @@ pub fn build(
             None => {
                 let b = Arc::new(
                     TableBrdf::new(t.clone(), &wavelengths)
-                        .map_err(|e| format!("spheres[{k}].table ({}): {e}", s.table))?,
+                        .map_err(|e| format!("{}: {e}", source_path(k, s)))?,
                 );
                 brdfs.push((Arc::as_ptr(t), b.clone()));
                 b
@@ -249,6 +260,14 @@ pub fn build(
         seed: desc.seed,
         max_bounces: desc.max_bounces as usize,
     })
+}
+
+/// The JSON path (and table source) of sphere `k`'s BRDF, for errors.
+fn source_path(k: usize, s: &scene::SphereDesc) -> String {
+    match s.source() {
+        scene::SurfaceSource::Table(t) => format!("spheres[{k}].table ({t})"),
+        scene::SurfaceSource::Material(_) => format!("spheres[{k}].material"),
+    }
 }
 
 /// Per object seen through pixel centres: pixel count, mean and max degree

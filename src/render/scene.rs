@@ -40,6 +40,11 @@ pub struct SceneDesc {
     /// Channel wavelengths (1 or 3, nm); none: see docs/render.md.
     #[serde(default)]
     pub wavelengths_nm: Option<Vec<f64>>,
+    /// The `solver.tolerance` the scene needs of its material spheres
+    /// (max error of f11 relative to max f11); none: each spec's own
+    /// solver settings (docs/render.md, "Materials and `scene plan`").
+    #[serde(default)]
+    pub tolerance: Option<f64>,
 }
 
 fn default_spp() -> u32 {
@@ -141,7 +146,7 @@ fn one() -> f64 {
     1.0
 }
 
-/// A sphere with a BRDF table.
+/// A sphere with a BRDF table or a material spec (exactly one).
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SphereDesc {
@@ -149,9 +154,57 @@ pub struct SphereDesc {
     pub center: [f64; 3],
     /// Radius (> 0).
     pub radius: f64,
+    /// Name in the plan and the summary; none: `spheres[k]`.
+    #[serde(default)]
+    pub name: Option<String>,
     /// Table file (relative to the scene file) or service URL
     /// `http://HOST:PORT/v1/brdfs/ID`.
-    pub table: String,
+    #[serde(default)]
+    pub table: Option<String>,
+    /// A material spec (docs/spec.md): inline, or the path of a spec file
+    /// relative to the scene file. Solved for what the scene needs
+    /// (`render::scene_plan`).
+    #[serde(default)]
+    pub material: Option<MaterialDesc>,
+}
+
+/// Where a sphere's material spec is.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(untagged)]
+pub enum MaterialDesc {
+    /// A spec file, relative to the scene file.
+    Path(String),
+    /// The spec itself (validated by `material::parse` when loaded).
+    Inline(serde_json::Map<String, serde_json::Value>),
+}
+
+/// What a sphere's BRDF comes from.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum SurfaceSource<'a> {
+    /// A table file or service URL.
+    Table(&'a str),
+    /// A material spec.
+    Material(&'a MaterialDesc),
+}
+
+impl SphereDesc {
+    /// The table or the material (validated: exactly one is given).
+    pub fn source(&self) -> SurfaceSource<'_> {
+        match (&self.table, &self.material) {
+            (Some(t), _) => SurfaceSource::Table(t),
+            (None, Some(m)) => SurfaceSource::Material(m),
+            (None, None) => SurfaceSource::Table(""),
+        }
+    }
+}
+
+/// The name of sphere `k` in plans and summaries: its `name`, else
+/// `spheres[k]`.
+pub fn sphere_name(desc: &SceneDesc, k: usize) -> String {
+    desc.spheres[k]
+        .name
+        .clone()
+        .unwrap_or_else(|| format!("spheres[{k}]"))
 }
 
 /// Albedo: one value for all channels or one per channel.
@@ -193,6 +246,27 @@ pub const MAX_SIDE: u32 = 16384;
 pub const MAX_SPP: u32 = 1 << 16;
 /// Largest number of indirect bounces.
 pub const MAX_BOUNCES: u32 = 16;
+
+/// Smallest and largest scene `tolerance` (those of `solver.tolerance`,
+/// docs/spec.md).
+pub const MIN_TOLERANCE: f64 = 1e-10;
+/// See [`MIN_TOLERANCE`].
+pub const MAX_TOLERANCE: f64 = 0.5;
+
+/// Exactly one of `table` and `material`, neither empty.
+fn sphere_source(k: usize, sp: &SphereDesc) -> Result<(), String> {
+    match (&sp.table, &sp.material) {
+        (Some(_), Some(_)) | (None, None) => Err(format!(
+            "spheres[{k}]: give exactly one of `table` (a table file or service URL) and \
+             `material` (a spec, or the path of a spec file)"
+        )),
+        (Some(t), None) if t.is_empty() => Err(format!("spheres[{k}].table: empty")),
+        (None, Some(MaterialDesc::Path(p))) if p.is_empty() => {
+            Err(format!("spheres[{k}].material: empty"))
+        }
+        _ => Ok(()),
+    }
+}
 
 /// Parse and validate a scene; errors name the JSON path
 /// (`lights[0].directional.stokes: …`).
@@ -325,8 +399,19 @@ pub fn validate(s: &SceneDesc) -> Result<(), String> {
     for (k, sp) in s.spheres.iter().enumerate() {
         finite3(&format!("spheres[{k}].center"), sp.center)?;
         in_range(&format!("spheres[{k}].radius"), sp.radius, 1e-9, 1e9)?;
-        if sp.table.is_empty() {
-            return Err(format!("spheres[{k}].table: empty"));
+        sphere_source(k, sp)?;
+        if let Some(name) = &sp.name {
+            if name.is_empty() {
+                return Err(format!("spheres[{k}].name: empty"));
+            }
+            if let Some(j) = s.spheres[..k]
+                .iter()
+                .position(|o| o.name.as_ref() == Some(name))
+            {
+                return Err(format!(
+                    "spheres[{k}].name: {name:?} already names spheres[{j}]"
+                ));
+            }
         }
     }
     if let Some(f) = &s.floor {
@@ -345,6 +430,9 @@ pub fn validate(s: &SceneDesc) -> Result<(), String> {
         MAX_SPP.into(),
     )?;
     in_range("max_bounces", s.max_bounces.into(), 0.0, MAX_BOUNCES.into())?;
+    if let Some(t) = s.tolerance {
+        in_range("tolerance", t, MIN_TOLERANCE, MAX_TOLERANCE)?;
+    }
     if let Some(w) = &s.wavelengths_nm {
         if w.len() != 1 && w.len() != 3 {
             return Err(format!(

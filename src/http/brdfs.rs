@@ -279,18 +279,7 @@ pub async fn create_brdf(
     headers: HeaderMap,
     body: Result<Bytes, BytesRejection>,
 ) -> Result<Response, ApiError> {
-    if let Some(ct) = headers.get(header::CONTENT_TYPE) {
-        let ct = ct.to_str().unwrap_or("");
-        let essence = ct
-            .split(';')
-            .next()
-            .unwrap_or("")
-            .trim()
-            .to_ascii_lowercase();
-        if essence != "application/json" && !essence.ends_with("+json") {
-            return Err(ApiError::UnsupportedMediaType(ct.to_string()));
-        }
-    }
+    require_json(&headers)?;
     let body = body.map_err(|e| ApiError::from_body(e, state.0.config.max_body_bytes))?;
     let text = std::str::from_utf8(&body).map_err(|e| {
         ApiError::InvalidSpec(material::SpecError {
@@ -325,6 +314,24 @@ pub async fn create_brdf(
             Ok(res)
         }
     }
+}
+
+/// 415 unless the request's `Content-Type`, when given, is JSON
+/// (`application/json` or a `+json` type).
+pub(crate) fn require_json(headers: &HeaderMap) -> Result<(), ApiError> {
+    if let Some(ct) = headers.get(header::CONTENT_TYPE) {
+        let ct = ct.to_str().unwrap_or("");
+        let essence = ct
+            .split(';')
+            .next()
+            .unwrap_or("")
+            .trim()
+            .to_ascii_lowercase();
+        if essence != "application/json" && !essence.ends_with("+json") {
+            return Err(ApiError::UnsupportedMediaType(ct.to_string()));
+        }
+    }
+    Ok(())
 }
 
 /// What `POST /v1/brdfs` does with a parsed spec: the service caps, the

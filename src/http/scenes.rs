@@ -80,6 +80,7 @@ fn invalid(text: &str) -> ApiError {
         (status = 202, description = "Some material's job is queued or running", body = SceneSubmission),
         (status = 401, description = "Missing or wrong bearer token", body = Problem, content_type = "application/problem+json"),
         (status = 413, description = "Body over --max-body-bytes", body = Problem, content_type = "application/problem+json"),
+        (status = 415, description = "Content type is not JSON", body = Problem, content_type = "application/problem+json"),
         (status = 422, description = "Invalid scene or material, or over a service limit; `path` names the field", body = Problem, content_type = "application/problem+json"),
         (status = 503, description = "Queue full or shutting down", body = Problem, content_type = "application/problem+json"),
     ),
@@ -87,9 +88,10 @@ fn invalid(text: &str) -> ApiError {
 )]
 pub async fn create_scene(
     State(state): State<AppState>,
-    _headers: HeaderMap,
+    headers: HeaderMap,
     body: Result<Bytes, BytesRejection>,
 ) -> Result<Response, ApiError> {
+    super::brdfs::require_json(&headers)?;
     let body = body.map_err(|e| ApiError::from_body(e, state.0.config.max_body_bytes))?;
     let text = std::str::from_utf8(&body)
         .map_err(|e| invalid(&format!("$: the body is not UTF-8: {e}")))?;

@@ -12,8 +12,7 @@ mod common;
 use common::{ok, run, scratch_dir};
 use polbrdf::plan::StreamPolicy;
 use polbrdf::render::scene_plan::{
-    MEASURED_TIMES_MS, STOKES_NEED_ACCEPTED, model_streams_for_tolerance, solvable_spec,
-    solve_time_ms, solves,
+    MEASURED_TIMES_MS, model_streams_for_tolerance, solve_time_ms, solves,
 };
 use serde_json::{Value, json};
 use std::path::Path;
@@ -349,9 +348,8 @@ fn wavelengths_and_tolerance_propagate() {
     );
     assert_eq!(c["relative_time"].as_f64().unwrap(), r_ms / f);
     assert_eq!(c["relative_table_size"].as_f64().unwrap(), 3.0 / 7.0 * 0.25);
-    // The reduced spec is a valid spec (the stokes need left out until
-    // the parser takes it: `solvable_spec`).
-    let s = write_json(&d, "reduced.json", &solvable_spec(r));
+    // The reduced spec is a valid spec.
+    let s = write_json(&d, "reduced.json", r);
     assert_eq!(ok(&["solve", &s])["results"].as_array().unwrap().len(), 3);
 
     // No scene wavelengths and no tolerance: the first sphere's first
@@ -493,11 +491,11 @@ fn a_material_renders_as_its_table() {
             None => {
                 let mut expect = spec.clone();
                 expect["needs"] = json!({"stokes": "unpolarized_in"});
-                assert_eq!(solvable_spec(reduced), expect);
+                assert_eq!(reduced, &expect);
             }
             Some(t) => assert_eq!(reduced["solver"], json!({"tolerance": t})),
         }
-        let s = write_json(&d, "reduced.json", &solvable_spec(reduced));
+        let s = write_json(&d, "reduced.json", reduced);
         let t = d.join("paint.pbrdf").to_string_lossy().into_owned();
         ok(&["solve", &s, "--table", &t]);
         let mut by_table = by_spec.clone();
@@ -549,7 +547,7 @@ fn a_reduced_table_renders_as_the_full_table() {
     let reduced = &plan(&d, &scene)["materials"][0]["spec"];
     assert_eq!(reduced["needs"]["stokes"], "unpolarized_in", "{reduced}");
     let mut images = Vec::new();
-    for (name, s) in [("full", spec), ("reduced", solvable_spec(reduced))] {
+    for (name, s) in [("full", spec), ("reduced", reduced.clone())] {
         let spec_path = write_json(&d, &format!("{name}.json"), &s);
         let t = d
             .join(format!("{name}.pbrdf"))
@@ -610,15 +608,4 @@ fn tolerances_pick_streams_like_the_measured_ladder() {
     );
     assert_eq!(solves(&StreamPolicy::Fixed(16), true), vec![8, 12, 16]);
     assert_eq!(solves(&StreamPolicy::Fixed(16), false), vec![16]);
-}
-
-#[test]
-fn the_stokes_need_leaves_the_solvable_spec_until_accepted() {
-    let reduced = json!({"layers": [], "needs": {"stokes": "unpolarized_in"}});
-    let s = solvable_spec(&reduced);
-    if STOKES_NEED_ACCEPTED {
-        assert_eq!(s, reduced);
-    } else {
-        assert_eq!(s, json!({"layers": []}));
-    }
 }

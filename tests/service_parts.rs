@@ -176,3 +176,97 @@ async fn a_result_with_the_estimate_covers_a_request_without_it() {
     }
     assert_eq!(solves().await, 2.0, "the covered requests solved nothing");
 }
+
+/// TiO2 over silver at 550 nm on a 24-node grid with the estimate, plus
+/// `solver` and `needs` fields.
+fn family_member(solver: &str, needs: &str) -> String {
+    format!(
+        r#"{{"layers":[{{"optical_thickness":1,"scatterer":{{"mie":{{"material":"TiO2","radius_um":0.2}}}}}}],
+            "base":{{"fresnel":{{"material":"silver"}}}},"wavelengths_nm":[550],
+            "solver":{{{solver}}},"needs":{{"grid":{{"polar_nodes":24}}{needs}}}}}"#
+    )
+}
+
+/// One full result covers every smaller request of its family through the
+/// server (docs/service.md, "Covering results"): fewer elements and
+/// incident angles (copies: the direct solve's numbers exactly), a coarser
+/// grid (interpolated: within the stated interpolation errors of a direct
+/// solve) and a looser tolerance (its estimate meets it), each 200 with
+/// `covered_by` naming it and no solve; what it cannot hold (a finer grid)
+/// is solved.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_full_result_covers_fewer_elements_angles_nodes_and_a_looser_tolerance() {
+    let dir = TempDir::new("parts-family");
+    let s = Server::start(&dir.0, &["--workers", "1"], &[]);
+    let c = client();
+    let solves = || metric(&c, &s, "polbrdf_solves_started_total");
+    let full_spec = family_member(r#""streams":8"#, "");
+    let (code, v, _) = post(&c, &s, &full_spec).await;
+    assert_eq!(code, 202, "{v}");
+    let full_id = v["id"].as_str().unwrap().to_string();
+    wait_done(&c, &s, &full_id).await;
+    assert_eq!(solves().await, 1.0);
+    let full = table(&c, &s, &full_id).await;
+    let estimate = full.metadata.wavelengths[0]
+        .error_estimate
+        .as_ref()
+        .unwrap()
+        .max_err_f11;
+
+    let cut = family_member(
+        r#""streams":8"#,
+        r#","stokes":"unpolarized_in","theta_i_deg":[0, 30]"#,
+    );
+    let coarse = family_member(r#""streams":8"#, "").replace("24", "12");
+    let loose = family_member(&format!(r#""tolerance":{}"#, 2.0 * estimate), "");
+    for text in [&cut, &coarse, &loose] {
+        let (code, v, _) = post(&c, &s, text).await;
+        assert_eq!(code, 200, "{text}: {v}");
+        assert_eq!(ids(&v["covered_by"]), vec![full_id.clone()], "{text}");
+        let served = table(&c, &s, v["id"].as_str().unwrap()).await;
+        let direct = solved_locally(text);
+        assert_eq!(served.metadata.spec, direct.metadata.spec);
+        assert_eq!(served.grid, direct.grid);
+        if text == &cut {
+            assert_eq!(served.wavelengths, direct.wavelengths);
+            assert_eq!(served.metadata, direct.metadata);
+        } else if text == &coarse {
+            let stated = served.metadata.wavelengths[0].interpolation_error.unwrap()
+                + direct.metadata.wavelengths[0].interpolation_error.unwrap();
+            let (a, b) = (&served.wavelengths[0], &direct.wavelengths[0]);
+            let (mut worst, mut f11_max) = (0.0_f64, 0.0_f64);
+            for ti in [0.0, 17.0, 45.0, 63.0, 80.0, 88.0] {
+                for to in [5.0, 30.0, 52.0, 74.0, 86.0] {
+                    for dphi in [0.0, 1.3, std::f64::consts::PI] {
+                        let (x, y) = (
+                            a.eval(&served.grid, ti, to, dphi)[0][0],
+                            b.eval(&direct.grid, ti, to, dphi)[0][0],
+                        );
+                        f11_max = f11_max.max(y);
+                        worst = worst.max((x - y).abs());
+                    }
+                }
+            }
+            assert!(
+                worst <= stated * f11_max,
+                "{:e} > {stated:e}",
+                worst / f11_max
+            );
+        } else {
+            // The tolerance is met by the cached 8-stream solve (a direct
+            // solve picks its own streams: not compared number for number).
+            assert_eq!(served.metadata.solver.tolerance, Some(2.0 * estimate));
+            assert_eq!(served.metadata.wavelengths[0].streams, 8);
+            assert_eq!(served.wavelengths[0].f, full.wavelengths[0].f);
+        }
+    }
+    assert_eq!(solves().await, 1.0, "the covered requests solved nothing");
+
+    // A finer grid is not held by the 24-node result: solved.
+    let finer = family_member(r#""streams":8"#, "").replace("24", "32");
+    let (code, v, _) = post(&c, &s, &finer).await;
+    assert_eq!(code, 202, "{v}");
+    assert_eq!(ids(&v["covered_by"]), Vec::<String>::new());
+    wait_done(&c, &s, v["id"].as_str().unwrap()).await;
+    assert_eq!(solves().await, 2.0);
+}

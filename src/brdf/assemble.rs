@@ -1,7 +1,6 @@
 //! A multi-wavelength table assembled from one-wavelength tables (the
-//! per-wavelength results of `plan::wavelength_parts`, docs/service.md),
-//! and a table restricted to what a smaller request needs
-//! (`plan::covering_requests`).
+//! per-wavelength results of `plan::wavelength_parts`, docs/service.md).
+//! A table cut to what a smaller request needs is `brdf::cover`.
 //!
 //! The parts are tables of the same physical spec, needs and settings at
 //! one wavelength each, so the assembled table is the table a solve of the
@@ -13,24 +12,8 @@
 
 use super::BrdfError;
 use super::table::Table;
-use crate::material::needs::Needs;
 
 impl Table {
-    /// This table cut to what a request with `needs` holds, under that
-    /// request's canonical spec and id: without the error estimate when it
-    /// needs none. The numbers are this table's (its solve is the one the
-    /// request would make; docs/service.md, "Per-wavelength results").
-    pub fn restricted(mut self, spec: serde_json::Value, spec_hash: &str, needs: &Needs) -> Table {
-        if !needs.error_estimate {
-            for w in &mut self.metadata.wavelengths {
-                w.error_estimate = None;
-            }
-        }
-        self.metadata.spec = spec;
-        self.metadata.spec_hash = spec_hash.to_string();
-        self
-    }
-
     /// The table of the request with canonical spec `spec` and id
     /// `spec_hash`, from its one-wavelength `parts` (any order).
     pub fn assemble(

@@ -30,7 +30,13 @@ pub fn build(spec: &Spec, grid: &PolarGrid) -> Result<Vec<WavelengthTable>, Brdf
 /// The polar grid a plan's table is built on: the default 64 nodes, or
 /// `needs.grid.polar_nodes` (validated: at least 6).
 pub fn plan_grid(plan: &Plan) -> PolarGrid {
-    PolarGrid::graded(plan.needs.polar_nodes()).expect("validated polar_nodes")
+    plan_nodes_grid(plan.needs.polar_nodes())
+}
+
+/// The graded grid of `n` polar nodes a request's `needs.grid.polar_nodes`
+/// names (validated: at least 6).
+pub fn plan_nodes_grid(n: usize) -> PolarGrid {
+    PolarGrid::graded(n).expect("validated polar_nodes")
 }
 
 /// How [`Table::from_spec_with`] builds a table.
@@ -184,7 +190,10 @@ pub fn build_wavelength(
             correction: None,
             ..block.clone_shape()
         };
-        interpolation_error(&f11, grid, &refl, &probes)
+        let theta: Vec<f64> = grid.theta_deg.iter().chain(&probes).copied().collect();
+        let ns = refl.ns;
+        let solved = |m: usize, a: usize, b: usize| refl.rho[m][(a * ns, b * ns)] / refl.mu[b];
+        interpolation_error(&f11, grid, &theta, orders, &solved)
     });
     Ok(BuiltWavelength {
         block,
@@ -195,36 +204,31 @@ pub fn build_wavelength(
 }
 
 /// Measured interpolation error of a table block (T2): the largest
-/// `Σ_m w_m |f^m_11(interpolated) − f^m_11(solved)|`, `w_m = (2 − δ_m0)/(2π)`
+/// `Σ_m w_m |f^m_11(interpolated) − f^m_11(reference)|`, `w_m = (2 − δ_m0)/(2π)`
 /// (a bound on the error of f11 at every azimuth, (T1)), over every pair of
-/// directions with at least one at a probe angle (`probes_theta_deg`,
-/// [`PolarGrid::probe_theta_deg`], solved in the same solve after the
-/// nodes: `refl.mu` = nodes then probes), relative to the largest f11 at
-/// `Δφ = 0` and `π` over all solved pairs. The single-scattering
-/// correction (T3) is exact at any direction and not part of it.
-fn interpolation_error(
+/// directions with at least one at a probe angle, relative to the largest
+/// f11 at `Δφ = 0` and `π` over all pairs. `theta` lists the grid's nodes
+/// then the probe angles ([`PolarGrid::probe_theta_deg`]); `reference(m, a,
+/// b)` is `f^m_11` at outgoing `theta[a]` and incident `theta[b]`: the
+/// solver's, solved in the same solve after the nodes, or a finer cached
+/// table's (`brdf::cover`). The single-scattering correction (T3) is exact
+/// at any direction and not part of it.
+pub(super) fn interpolation_error(
     block: &WavelengthTable,
     grid: &PolarGrid,
-    refl: &solver::ReflectionFourier,
-    probes_theta_deg: &[f64],
+    theta: &[f64],
+    orders: usize,
+    reference: &dyn Fn(usize, usize, usize) -> f64,
 ) -> f64 {
     let n = grid.len();
-    let theta: Vec<f64> = grid
-        .theta_deg
-        .iter()
-        .chain(probes_theta_deg)
-        .copied()
-        .collect();
-    let ns = refl.ns;
-    let orders = block.orders.min(refl.rho.len());
+    let orders = block.orders.min(orders);
     let weight = |m: usize| if m == 0 { 1.0 } else { 2.0 } / (2.0 * PI);
-    let solved = |m: usize, a: usize, b: usize| refl.rho[m][(a * ns, b * ns)] / refl.mu[b];
     let mut f11_max: f64 = 0.0;
     for a in 0..theta.len() {
         for b in 0..theta.len() {
             let (mut at0, mut at_pi) = (0.0, 0.0);
             for m in 0..orders {
-                let v = weight(m) * solved(m, a, b);
+                let v = weight(m) * reference(m, a, b);
                 at0 += v;
                 at_pi += if m % 2 == 0 { v } else { -v };
             }
@@ -239,7 +243,7 @@ fn interpolation_error(
             }
             let c = block.coefficients(grid, theta[a], theta[b]);
             let e: f64 = (0..orders)
-                .map(|m| weight(m) * (c[m][0][0] - solved(m, a, b)).abs())
+                .map(|m| weight(m) * (c[m][0][0] - reference(m, a, b)).abs())
                 .sum();
             err = err.max(e);
         }

@@ -22,6 +22,7 @@
 pub mod angles;
 mod assemble;
 pub mod build;
+mod cover;
 pub mod coverage;
 pub mod export;
 pub mod format;

@@ -36,8 +36,8 @@ use crate::material::needs::StokesNeed;
 use crate::physics::RefractiveIndex;
 use crate::physics::stokes::{Mueller, mul, rotation};
 use crate::plan::{self, Plan};
-use crate::solver;
 use crate::solver::truncation::{CorrectionLayer, SingleScatterCorrection};
+use crate::solver::{self, Settings};
 use std::f64::consts::PI;
 
 /// Angular tolerance (radians) within which an outgoing direction "is" the
@@ -416,22 +416,11 @@ impl Table {
         {
             return Err(BrdfError::Query("a wavelength is listed twice".into()));
         }
-        let settings = &plan.settings;
         let metadata = Metadata {
             generator: format!("polbrdf {}", env!("CARGO_PKG_VERSION")),
             spec: plan.canonical_spec(),
             spec_hash: plan.id.clone(),
-            solver: SolverMeta {
-                streams: settings.streams,
-                tolerance: match plan.policy {
-                    plan::StreamPolicy::Tolerance(t) => Some(t),
-                    plan::StreamPolicy::Fixed(_) => None,
-                },
-                polarized: settings.polarized,
-                start_factor: settings.start_factor,
-                fourier_tolerance: settings.fourier_tolerance,
-                max_order: settings.max_order,
-            },
+            solver: solver_meta(&plan.settings, plan.policy),
             grid: grid_description(&grid),
             interpolation: INTERPOLATION.into(),
             conventions: CONVENTIONS.into(),
@@ -599,7 +588,22 @@ pub fn is_mirror_pair(d: &Directions) -> bool {
     angles::angle_between(wo, mirror) <= MIRROR_TOLERANCE_RAD
 }
 
-fn grid_description(grid: &PolarGrid) -> String {
+/// The solver metadata of a request with these settings and policy.
+pub(super) fn solver_meta(settings: &Settings, policy: plan::StreamPolicy) -> SolverMeta {
+    SolverMeta {
+        streams: settings.streams,
+        tolerance: match policy {
+            plan::StreamPolicy::Tolerance(t) => Some(t),
+            plan::StreamPolicy::Fixed(_) => None,
+        },
+        polarized: settings.polarized,
+        start_factor: settings.start_factor,
+        fourier_tolerance: settings.fourier_tolerance,
+        max_order: settings.max_order,
+    }
+}
+
+pub(super) fn grid_description(grid: &PolarGrid) -> String {
     let uniform_s = grid
         .s
         .iter()

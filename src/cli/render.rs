@@ -231,7 +231,7 @@ pub fn run(a: &RenderArgs) -> Result<Value, String> {
             (scene::SurfaceSource::Table(t), _) => (resolve(&scene_dir, t), None),
             (scene::SurfaceSource::Material(_), Some(p)) => {
                 let reduced = p.materials[k].spec.as_ref().expect("a material entry");
-                let spec = scene_plan::solvable_spec(reduced).to_string();
+                let spec = reduced.to_string();
                 (format!("spec:{spec}"), Some(spec))
             }
             (scene::SurfaceSource::Material(_), None) => unreachable!("planned"),

@@ -132,7 +132,6 @@ fn cost_model() -> Value {
         "solves": "fixed N with the error estimate: N/2, 3N/4, N; a tolerance: 2, 3, 4, 6, 8, …, N",
         "stokes_time_factor": {"full": 1, "unpolarized_in": scene_plan::stokes_time_factor(scene_plan::StokesNeed::UnpolarizedIn)},
         "stokes_table_factor": {"full": 1, "unpolarized_in": scene_plan::stokes_bytes_factor(scene_plan::StokesNeed::UnpolarizedIn)},
-        "stokes_need_submitted": scene_plan::STOKES_NEED_ACCEPTED,
         "docs": "docs/render.md, \"Materials and scene plan\"",
     })
 }

@@ -133,7 +133,7 @@ pub async fn create_scene(
             out.push(m);
             continue;
         }
-        let spec_text = scene_plan::solvable_spec(reduced).to_string();
+        let spec_text = reduced.to_string();
         let prefix = |e: SpecError| {
             ApiError::InvalidSpec(SpecError::new(
                 format!("spheres[{k}].material (reduced for the scene).{}", e.path),

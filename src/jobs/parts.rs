@@ -10,6 +10,9 @@ use crate::material::Spec;
 use crate::plan;
 use crate::storage::{BlobStore, JobRow, Status, now_ms};
 
+/// Most done rows of a family looked at for a covering result.
+const MAX_COVER_CANDIDATES: i64 = 32;
+
 /// A cached result a request (or one of its wavelengths) is answered
 /// from: its verified bytes (restricted to the request's needs), its solve
 /// time and the id of the result they were read from.
@@ -83,35 +86,50 @@ impl Jobs {
         }))
     }
 
-    /// A cached result of another request that covers `spec`'s needs
-    /// (`plan::covering_requests`), cut to them under `spec`'s canonical
-    /// JSON and id (`brdf::Table::restricted`).
+    /// A cached result of another request of `spec`'s family that covers
+    /// its needs (`plan::spec_may_cover`, `brdf::Table::cover`; docs/service.md,
+    /// "Covering results"), cut or resampled to them under `spec`'s
+    /// canonical JSON and id. Candidates on the request's own grid first
+    /// (copies), then the coarsest finer grid (the cheapest resample).
     pub(super) async fn cached_covering(
         &self,
         spec: &Spec,
         canonical: &str,
         id: &str,
     ) -> Result<Option<CachedPart>, JobError> {
-        for cover in plan::covering_requests(spec) {
-            let Some(found) = self.cached_part(&cover.id).await? else {
+        let family = plan::family_of_spec(spec);
+        let rows = self
+            .index
+            .done_in_family(&family, id, MAX_COVER_CANDIDATES)
+            .await?;
+        let mut candidates: Vec<(bool, usize, String)> = rows
+            .into_iter()
+            .filter(|r| r.media_type.as_deref() == Some(result::MEDIA_TYPE))
+            .filter_map(|r| {
+                let c = crate::material::parse(&r.spec).ok()?;
+                let check = plan::spec_may_cover(&c, spec).ok()?;
+                Some((check.resample, c.needs.polar_nodes(), r.id))
+            })
+            .collect();
+        candidates.sort();
+        for (_, _, cover) in candidates {
+            let Some(found) = self.cached_part(&cover).await? else {
                 continue;
             };
-            let (c, i, needs) = (canonical.to_string(), id.to_string(), spec.needs.clone());
-            let restricted = tokio::task::spawn_blocking(move || {
+            let (c, i, request) = (canonical.to_string(), id.to_string(), spec.clone());
+            let covered = tokio::task::spawn_blocking(move || {
                 let table = format::from_bytes(&found.bytes).map_err(|e| e.to_string())?;
                 let spec = serde_json::from_str(&c).map_err(|e| e.to_string())?;
-                let table = table.restricted(spec, &i, &needs);
+                let table = table.cover(&request, spec, &i)?;
                 let bytes =
                     format::to_bytes(&table, result::DATA_TYPE).map_err(|e| e.to_string())?;
                 Ok::<_, String>(CachedPart { bytes, ..found })
             })
             .await
             .map_err(|e| JobError::Storage(e.to_string()))?;
-            match restricted {
+            match covered {
                 Ok(part) => return Ok(Some(part)),
-                Err(e) => {
-                    tracing::warn!(cover = %cover.id, error = %e, "a covering result does not restrict")
-                }
+                Err(e) => tracing::debug!(cover = %cover, reason = %e, "does not cover"),
             }
         }
         Ok(None)

@@ -16,14 +16,18 @@
 //! * [`id`]: the content address of the canonical form and the version
 //!   label of every stored result;
 //! * [`wavelength_parts`] (`parts`): the one-wavelength requests a
-//!   multi-wavelength request is made of, each a cached result of its own.
+//!   multi-wavelength request is made of, each a cached result of its own;
+//! * [`spec_may_cover`] (`cover`): which cached results of the same
+//!   [`family_of_spec`] may answer a request.
 
+mod cover;
 pub mod id;
 mod lower;
 mod mie;
 mod parts;
 mod solvable;
 
+pub use cover::{CoverCheck, family_of_canonical, family_of_spec, spec_may_cover, stokes_contains};
 pub use id::{
     SCHEMA_VERSION, SOLVER_VERSION, id_of_canonical, id_of_spec, id_preimage, is_id, result_version,
 };
@@ -32,7 +36,7 @@ pub use lower::{
     wavelengths,
 };
 pub use mie::max_size_parameter;
-pub use parts::{Covering, WavelengthPart, covering_requests, wavelength_parts};
+pub use parts::{WavelengthPart, wavelength_parts};
 pub use solvable::check_solvable;
 
 use crate::material::needs::Needs;

@@ -49,43 +49,6 @@ pub fn wavelength_parts(spec: &Spec) -> Vec<WavelengthPart> {
         .collect()
 }
 
-/// A request whose result holds everything another request needs: its
-/// spec, canonical JSON and id.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Covering {
-    /// The covering spec.
-    pub spec: Spec,
-    /// Its canonical JSON.
-    pub canonical_json: String,
-    /// Its id.
-    pub id: String,
-}
-
-/// The other requests (same physical spec, wavelengths and settings) whose
-/// cached results cover `spec`'s needs, most preferred first: what a
-/// result with less in it is cut from (`brdf::Table::restricted`).
-///
-/// Covered now: `needs.error_estimate: false` by the same request with the
-/// estimate (the N-stream solve is the same one; the estimate's extra
-/// solves only add the statement). Not covered (solved): a coarser grid by
-/// a finer one, fewer Fourier orders by more (with an estimate, the
-/// estimate of the cut series differs), a looser tolerance by a tighter
-/// one.
-pub fn covering_requests(spec: &Spec) -> Vec<Covering> {
-    let mut out = Vec::new();
-    if !spec.needs.error_estimate {
-        let mut with = spec.clone();
-        with.needs.error_estimate = true;
-        let (canonical_json, id) = id_of_spec(&with);
-        out.push(Covering {
-            spec: with,
-            canonical_json,
-            id,
-        });
-    }
-    out
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -108,17 +71,6 @@ mod tests {
         assert_eq!(parts[0].id, id_of_spec(&spec("[650]")).1);
         assert_eq!(parts[1].id, id_of_spec(&spec("[450.0]")).1);
         assert_ne!(parts[0].id, parts[1].id);
-    }
-
-    #[test]
-    fn a_request_without_the_estimate_is_covered_by_the_one_with_it() {
-        let plain = spec("[550]");
-        assert!(covering_requests(&plain).is_empty());
-        let mut reduced = plain.clone();
-        reduced.needs.error_estimate = false;
-        let covers = covering_requests(&reduced);
-        assert_eq!(covers.len(), 1);
-        assert_eq!(covers[0].id, id_of_spec(&plain).1);
     }
 
     #[test]

@@ -28,11 +28,6 @@ use crate::plan::StreamPolicy;
 use serde::Serialize;
 use serde_json::{Value, json};
 
-/// Whether the spec that is parsed, solved or submitted carries
-/// `needs.stokes` ([`solvable_spec`]); `false` makes every table the full
-/// one, a superset. On since the parser accepts the need.
-pub const STOKES_NEED_ACCEPTED: bool = true;
-
 /// The Stokes part of the BRDF a sphere needs (`needs.stokes`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]
@@ -219,30 +214,6 @@ pub fn reduced_spec(spec: &Value, needs: &MaterialNeeds) -> Value {
             .as_object_mut()
             .expect("needs is an object");
         n.insert("stokes".into(), json!(needs.stokes.value.as_str()));
-    }
-    s
-}
-
-/// The spec to parse, solve or submit for a reduced request: the reduced
-/// spec itself once [`STOKES_NEED_ACCEPTED`], until then without
-/// `needs.stokes` (and without a `needs` left empty). The one place the
-/// stokes need is switched on.
-pub fn solvable_spec(reduced: &Value) -> Value {
-    let mut s = reduced.clone();
-    if STOKES_NEED_ACCEPTED {
-        return s;
-    }
-    if let Some(obj) = s.as_object_mut() {
-        let empty = match obj.get_mut("needs").and_then(Value::as_object_mut) {
-            Some(n) => {
-                n.remove("stokes");
-                n.is_empty()
-            }
-            None => false,
-        };
-        if empty {
-            obj.remove("needs");
-        }
     }
     s
 }
@@ -521,7 +492,7 @@ pub fn plan_scene(
             continue;
         };
         let reduced = reduced_spec(&m.json, &needs);
-        let parsed = crate::material::parse(&solvable_spec(&reduced).to_string())
+        let parsed = crate::material::parse(&reduced.to_string())
             .map_err(|e| format!("spheres[{k}].material (reduced for the scene): {e}"))?;
         let full = cost(&m.spec, StokesNeed::Full);
         let red = cost(&parsed, needs.stokes.value);

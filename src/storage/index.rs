@@ -8,7 +8,7 @@
 //! `FOR UPDATE SKIP LOCKED` and leases) behind the same methods.
 
 use super::StorageError;
-use crate::plan::result_version;
+use crate::plan::{family_of_canonical, result_version};
 use sqlx::sqlite::{SqliteConnectOptions, SqliteJournalMode, SqlitePoolOptions, SqliteSynchronous};
 use sqlx::{Row, SqlitePool};
 use std::str::FromStr;
@@ -127,7 +127,51 @@ impl Index {
             .connect_with(options)
             .await?;
         sqlx::migrate!().run(&pool).await?;
-        Ok(Self { pool })
+        let index = Self { pool };
+        index.backfill_families().await?;
+        Ok(index)
+    }
+
+    /// Give rows written before the `family` column existed their family
+    /// (migrations/0003), so that they can cover requests too.
+    async fn backfill_families(&self) -> Result<(), StorageError> {
+        let rows = sqlx::query("SELECT id, spec FROM jobs WHERE family IS NULL")
+            .fetch_all(&self.pool)
+            .await?;
+        for r in rows {
+            let (id, spec): (String, String) = (r.try_get("id")?, r.try_get("spec")?);
+            sqlx::query("UPDATE jobs SET family = ?2 WHERE id = ?1")
+                .bind(id)
+                .bind(family_of_canonical(&spec))
+                .execute(&self.pool)
+                .await?;
+        }
+        Ok(())
+    }
+
+    /// Done rows of the current version in `family`
+    /// ([`crate::plan::family_of_canonical`]) other than `except`, newest
+    /// first, at most `limit`: the results that may cover a request
+    /// (docs/service.md, "Covering results").
+    pub async fn done_in_family(
+        &self,
+        family: &str,
+        except: &str,
+        limit: i64,
+    ) -> Result<Vec<JobRow>, StorageError> {
+        let sql = format!(
+            "SELECT {COLUMNS} FROM jobs
+             WHERE family = ? AND status = 'done' AND result_version = ? AND id != ?
+             ORDER BY finished_at DESC, id LIMIT ?"
+        );
+        let rows = sqlx::query(sqlx::AssertSqlSafe(sql))
+            .bind(family)
+            .bind(result_version())
+            .bind(except)
+            .bind(limit)
+            .fetch_all(&self.pool)
+            .await?;
+        rows.iter().map(to_row).collect()
     }
 
     /// Close the pool (checkpoints the WAL).
@@ -203,18 +247,20 @@ impl Index {
         now: i64,
     ) -> Result<(), StorageError> {
         sqlx::query(
-            "INSERT INTO jobs (id, status, spec, wavelengths, created_at, updated_at, result_version)
-             VALUES (?1, 'queued', ?2, ?3, ?4, ?4, ?5)
+            "INSERT INTO jobs (id, status, spec, wavelengths, created_at, updated_at, result_version,
+               family)
+             VALUES (?1, 'queued', ?2, ?3, ?4, ?4, ?5, ?6)
              ON CONFLICT (id) DO UPDATE SET
                status = 'queued', progress = 0, wall_time_ms = '[]', error_estimate = NULL,
                error = NULL, digest = NULL, size = NULL, media_type = NULL,
-               updated_at = ?4, finished_at = NULL, result_version = ?5",
+               updated_at = ?4, finished_at = NULL, result_version = ?5, family = ?6",
         )
         .bind(id)
         .bind(spec)
         .bind(wavelengths)
         .bind(now)
         .bind(result_version())
+        .bind(family_of_canonical(spec))
         .execute(&self.pool)
         .await?;
         Ok(())
@@ -316,12 +362,13 @@ impl Index {
     ) -> Result<(), StorageError> {
         sqlx::query(
             "INSERT INTO jobs (id, status, spec, wavelengths, progress, digest, size, media_type,
-               wall_time_ms, error_estimate, created_at, updated_at, finished_at, result_version)
-             VALUES (?1, 'done', ?2, ?3, 1, ?4, ?5, ?6, ?7, ?8, ?9, ?9, ?9, ?10)
+               wall_time_ms, error_estimate, created_at, updated_at, finished_at, result_version,
+               family)
+             VALUES (?1, 'done', ?2, ?3, 1, ?4, ?5, ?6, ?7, ?8, ?9, ?9, ?9, ?10, ?11)
              ON CONFLICT (id) DO UPDATE SET
                status = 'done', progress = 1, digest = ?4, size = ?5, media_type = ?6,
                wall_time_ms = ?7, error_estimate = ?8, error = NULL, updated_at = ?9,
-               finished_at = ?9, result_version = ?10
+               finished_at = ?9, result_version = ?10, family = ?11
              WHERE jobs.status != 'done' OR jobs.result_version != ?10",
         )
         .bind(id)
@@ -334,6 +381,7 @@ impl Index {
         .bind(error_estimate)
         .bind(now)
         .bind(result_version())
+        .bind(family_of_canonical(spec))
         .execute(&self.pool)
         .await?;
         Ok(())

@@ -161,30 +161,13 @@ impl GreekCoefficients {
 
     /// Sums the series at the scattering-angle cosines `mu`, giving
     /// `a1, a2, a3, a4, b1, b2` (conventions §3). Cost `O(len · mu.len())`,
-    /// parallel over `mu`.
+    /// parallel over `mu` (one angle: [`GreekCoefficients::evaluate_at`]).
     pub fn evaluate(&self, mu: &[f64]) -> ScatteringMatrixSamples {
-        let n_terms = self.len();
-        let sp: Vec<f64> = (0..n_terms).map(|l| self.alpha[l] + self.zeta[l]).collect();
-        let sm: Vec<f64> = (0..n_terms).map(|l| self.alpha[l] - self.zeta[l]).collect();
         let rows: Vec<[f64; 6]> = mu
             .par_iter()
             .map_init(
-                || vec![0.0; n_terms],
-                |buf, &x| {
-                    let dot =
-                        |c: &[f64], d: &[f64]| -> f64 { c.iter().zip(d).map(|(a, b)| a * b).sum() };
-                    wigner_d_into(0, 0, x, buf);
-                    let a1 = dot(&self.beta, buf);
-                    let a4 = dot(&self.delta, buf);
-                    wigner_d_into(2, 2, x, buf);
-                    let plus = dot(&sp, buf);
-                    wigner_d_into(2, -2, x, buf);
-                    let minus = dot(&sm, buf);
-                    wigner_d_into(0, 2, x, buf);
-                    let b1 = dot(&self.gamma, buf);
-                    let b2 = -dot(&self.epsilon, buf);
-                    [a1, 0.5 * (plus + minus), 0.5 * (plus - minus), a4, b1, b2]
-                },
+                || vec![0.0; self.len()],
+                |buf, &x| self.evaluate_with(x, buf),
             )
             .collect();
         let col = |k: usize| rows.iter().map(|r| r[k]).collect::<Vec<f64>>();
@@ -197,6 +180,74 @@ impl GreekCoefficients {
             b1: col(4),
             b2: col(5),
         }
+    }
+
+    /// `[a1, a2, a3, a4, b1, b2]` at one scattering-angle cosine: the
+    /// serial kernel of [`GreekCoefficients::evaluate`], for callers that
+    /// sum the series at one angle at a time (the single-scattering
+    /// correction at each direction pair, `solver::truncation`).
+    pub fn evaluate_at(&self, x: f64) -> [f64; 6] {
+        self.evaluate_with(x, &mut vec![0.0; self.len()])
+    }
+
+    /// `Σ_t w_t [a1, a2, a3, a4, b1, b2]_t` at one scattering-angle cosine
+    /// for several coefficient sets with weights, on one set of Wigner
+    /// functions (those of the longest series; a shorter one uses its
+    /// first terms, the same values). `polarized = false`: `a1` only, the
+    /// rest zero.
+    pub fn weighted_sum_at(
+        sets: &[(&GreekCoefficients, f64)],
+        x: f64,
+        polarized: bool,
+    ) -> [f64; 6] {
+        let n = sets.iter().map(|(c, _)| c.len()).max().unwrap_or(0);
+        let mut buf = vec![0.0; n];
+        let mut out = [0.0; 6];
+        let mut add = |k: usize, buf: &[f64], f: &dyn Fn(&GreekCoefficients, &[f64]) -> f64| {
+            for (c, w) in sets {
+                out[k] += w * f(c, &buf[..c.len()]);
+            }
+        };
+        wigner_d_into(0, 0, x, &mut buf);
+        add(0, &buf, &|c, d| dot(&c.beta, d));
+        if !polarized {
+            return out;
+        }
+        add(3, &buf, &|c, d| dot(&c.delta, d));
+        wigner_d_into(2, 2, x, &mut buf);
+        let plus = |c: &GreekCoefficients, d: &[f64]| -> f64 {
+            (0..d.len()).map(|l| (c.alpha[l] + c.zeta[l]) * d[l]).sum()
+        };
+        add(1, &buf, &|c, d| 0.5 * plus(c, d));
+        add(2, &buf, &|c, d| 0.5 * plus(c, d));
+        wigner_d_into(2, -2, x, &mut buf);
+        let minus = |c: &GreekCoefficients, d: &[f64]| -> f64 {
+            (0..d.len()).map(|l| (c.alpha[l] - c.zeta[l]) * d[l]).sum()
+        };
+        add(1, &buf, &|c, d| 0.5 * minus(c, d));
+        add(2, &buf, &|c, d| -0.5 * minus(c, d));
+        wigner_d_into(0, 2, x, &mut buf);
+        add(4, &buf, &|c, d| dot(&c.gamma, d));
+        add(5, &buf, &|c, d| -dot(&c.epsilon, d));
+        out
+    }
+
+    /// [`GreekCoefficients::evaluate_at`] with a scratch buffer of
+    /// `self.len()` values: `a2, a3` from `α ± ζ` on `d^l_{2,±2}`
+    /// (conventions §3), `b2 = −Σ ε_l d^l_02` (the Siewert sign, §4).
+    fn evaluate_with(&self, x: f64, buf: &mut [f64]) -> [f64; 6] {
+        let (alpha, zeta) = (&self.alpha, &self.zeta);
+        wigner_d_into(0, 0, x, buf);
+        let a1 = dot(&self.beta, buf);
+        let a4 = dot(&self.delta, buf);
+        wigner_d_into(2, 2, x, buf);
+        let plus: f64 = (0..buf.len()).map(|l| (alpha[l] + zeta[l]) * buf[l]).sum();
+        wigner_d_into(2, -2, x, buf);
+        let minus: f64 = (0..buf.len()).map(|l| (alpha[l] - zeta[l]) * buf[l]).sum();
+        wigner_d_into(0, 2, x, buf);
+        let b1 = dot(&self.gamma, buf);
+        let b2 = -dot(&self.epsilon, buf);
+        [a1, 0.5 * (plus + minus), 0.5 * (plus - minus), a4, b1, b2]
     }
 
     /// Asymmetry parameter `g = β_1 / 3` (0 if there is no `l = 1` term).
@@ -216,6 +267,10 @@ impl GreekCoefficients {
             epsilon: self.epsilon[..n].to_vec(),
         }
     }
+}
+
+fn dot(c: &[f64], d: &[f64]) -> f64 {
+    c.iter().zip(d).map(|(a, b)| a * b).sum()
 }
 
 /// Checks that the six vectors have the length of `mu` and that all values
@@ -632,6 +687,35 @@ mod tests {
     fn max_coeff_diff(a: &GreekCoefficients, b: &GreekCoefficients) -> f64 {
         assert_eq!(a.len(), b.len());
         max_change(a, b)
+    }
+
+    /// The one-angle kernels are the vector evaluation at each angle, and a
+    /// weighted sum of sets of different lengths on shared Wigner functions
+    /// is the sum of their evaluations.
+    #[test]
+    fn one_angle_and_weighted_sums_equal_the_vector_evaluation() {
+        let a = test_data::garcia_siewert();
+        let b = GreekCoefficients::henyey_greenstein(0.7, 40);
+        let x = [-1.0, -0.93, -0.2, 0.0, 0.31, 0.77, 0.999, 1.0];
+        let (sa, sb) = (a.evaluate(&x), b.evaluate(&x));
+        let six = |s: &ScatteringMatrixSamples, k: usize| {
+            [s.a1[k], s.a2[k], s.a3[k], s.a4[k], s.b1[k], s.b2[k]]
+        };
+        for (k, &xk) in x.iter().enumerate() {
+            assert_eq!(a.evaluate_at(xk), six(&sa, k));
+            let w = GreekCoefficients::weighted_sum_at(&[(&a, 0.3), (&b, -1.7)], xk, true);
+            let scalar = GreekCoefficients::weighted_sum_at(&[(&a, 0.3), (&b, -1.7)], xk, false);
+            let (ea, eb) = (six(&sa, k), six(&sb, k));
+            for e in 0..6 {
+                let want = 0.3 * ea[e] - 1.7 * eb[e];
+                assert!(
+                    (w[e] - want).abs() <= 1e-14 * (1.0 + want.abs()),
+                    "{xk} {e}"
+                );
+            }
+            assert_eq!(scalar[0], w[0]);
+            assert_eq!(scalar[1..], [0.0; 5]);
+        }
     }
 
     #[test]

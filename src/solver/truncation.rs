@@ -298,21 +298,34 @@ fn mul(a: &Mueller, b: &Mueller) -> Mueller {
     o
 }
 
-/// Single-scattering BRDF of one layer (phase matrix `coef`, albedo
-/// `omega`, top at depth `a`, thickness `tau`) for outgoing cosine `mu`,
-/// incident `mu0`, propagation azimuth difference `dphi`: the path straight
-/// up and, over a mirror `(R, T)` under a stack of total thickness `T`, the
-/// three paths that reflect at the mirror before, after, or before and after
-/// the scattering (all attenuated along their whole length):
-/// `f = ω/(4π μ μ0) Σ_paths M_path ∫ e^{−(α + c t)} dt` with
+/// One layer's single scattering as [`layers_single_scattering`] sums it:
+/// phase matrix `coef`, albedo `omega`, top at depth `top`, thickness
+/// `tau`, counted `sign` times (+1, or −1 for the truncated term of a
+/// correction).
+struct ScatteringTerm<'a> {
+    coef: &'a GreekCoefficients,
+    omega: f64,
+    top: f64,
+    tau: f64,
+    sign: f64,
+}
+
+/// Single-scattering BRDF of a sum of layer terms (each: phase matrix,
+/// albedo `ω`, top at depth `α`, thickness `τ`, a sign) for outgoing cosine
+/// `mu`, incident `mu0`, propagation azimuth difference `dphi`: the path
+/// straight up and, over a mirror `(R, T)` under a stack of total thickness
+/// `T`, the three paths that reflect at the mirror before, after, or before
+/// and after the scattering (all attenuated along their whole length):
+/// `f = Σ_terms ± ω/(4π μ μ0) Σ_paths M_path ∫ e^{−(α + c t)} dt` with
 /// `M = Z↑↓, R(μ) Z↓↓, Z↑↑ R(μ0), R(μ) Z↓↑ R(μ0)`. Scalar solves use the
 /// (1,1) elements only.
-#[allow(clippy::too_many_arguments)]
-fn layer_single_scattering(
-    coef: &GreekCoefficients,
-    omega: f64,
-    a: f64,
-    tau: f64,
+///
+/// The terms share each path's scattering angle, so their series are summed
+/// on one set of Wigner functions (`GreekCoefficients::weighted_sum_at`)
+/// and rotated once: the exact-minus-truncated correction costs one
+/// series evaluation per path, not two.
+fn layers_single_scattering(
+    terms: &[ScatteringTerm],
     polarized: bool,
     mirror: Option<&(MirrorFn, f64)>,
     mu: f64,
@@ -320,28 +333,24 @@ fn layer_single_scattering(
     dphi: f64,
 ) -> Mueller {
     let mut out = [[0.0; 4]; 4];
-    if omega == 0.0 || tau <= 0.0 {
+    let terms: Vec<&ScatteringTerm> = terms
+        .iter()
+        .filter(|t| t.omega != 0.0 && t.tau > 0.0)
+        .collect();
+    if terms.is_empty() {
         return out;
     }
-    let f = |c: f64| {
-        let v = coef.evaluate(&[c]);
-        [v.a1[0], v.a2[0], v.a3[0], v.a4[0], v.b1[0], v.b2[0]]
-    };
-    let z = |nu_in: f64, nu_out: f64| -> Mueller {
-        if polarized {
-            geometric_phase_matrix(&f, nu_in, 0.0, nu_out, dphi)
-        } else {
-            // Scalar: only a1 of the scattering angle.
-            let c = nu_in * nu_out
-                + ((1.0 - nu_in * nu_in) * (1.0 - nu_out * nu_out))
-                    .max(0.0)
-                    .sqrt()
-                    * dphi.cos();
-            let mut m = [[0.0; 4]; 4];
-            m[0][0] = f(c.clamp(-1.0, 1.0))[0];
-            m
-        }
-    };
+    let (u, u0) = (1.0 / mu, 1.0 / mu0);
+    let k = 1.0 / (4.0 * std::f64::consts::PI * mu * mu0);
+    // Per path: (ν_in, ν_out, before, after: the mirror reflections, and
+    // the depth integral's `(α offset, c)` of `segment`).
+    let mut paths = vec![(-mu0, mu, false, false, 0.0, u0 + u)];
+    let total = mirror.map(|(_, t)| *t);
+    if let Some(t) = total {
+        paths.push((-mu0, -mu, true, false, 2.0 * t * u, u0 - u));
+        paths.push((mu0, mu, false, true, 2.0 * t * u0, u - u0));
+        paths.push((mu0, -mu, true, true, 2.0 * t * (u0 + u), -(u0 + u)));
+    }
     let scalar = |m: Mueller| -> Mueller {
         if polarized {
             m
@@ -351,33 +360,45 @@ fn layer_single_scattering(
             o
         }
     };
-    let (u, u0) = (1.0 / mu, 1.0 / mu0);
-    let k = omega / (4.0 * std::f64::consts::PI * mu * mu0);
-    let mut add = |m: Mueller, g: f64| {
-        if g != 0.0 {
-            for i in 0..4 {
-                for j in 0..4 {
-                    out[i][j] += k * g * m[i][j];
-                }
+    let reflections = mirror.map(|(r, _)| (scalar(r(mu)), scalar(r(mu0))));
+    let mut weighted: Vec<(&GreekCoefficients, f64)> = Vec::with_capacity(terms.len());
+    for &(nu_in, nu_out, before, after, offset, c) in &paths {
+        weighted.clear();
+        for t in &terms {
+            let g = segment(offset, c, t.top, t.tau);
+            if g != 0.0 {
+                weighted.push((t.coef, t.sign * t.omega * k * g));
             }
         }
-    };
-    add(z(-mu0, mu), segment(0.0, u0 + u, a, tau));
-    if let Some((r, total)) = mirror {
-        let (r_mu, r_mu0) = (scalar(r(mu)), scalar(r(mu0)));
-        let t = *total;
-        add(
-            mul(&r_mu, &z(-mu0, -mu)),
-            segment(2.0 * t * u, u0 - u, a, tau),
-        );
-        add(
-            mul(&z(mu0, mu), &r_mu0),
-            segment(2.0 * t * u0, u - u0, a, tau),
-        );
-        add(
-            mul(&mul(&r_mu, &z(mu0, -mu)), &r_mu0),
-            segment(2.0 * t * (u0 + u), -(u0 + u), a, tau),
-        );
+        if weighted.is_empty() {
+            continue;
+        }
+        let f = |x: f64| GreekCoefficients::weighted_sum_at(&weighted, x, polarized);
+        let mut m = if polarized {
+            geometric_phase_matrix(&f, nu_in, 0.0, nu_out, dphi)
+        } else {
+            let x = nu_in * nu_out
+                + ((1.0 - nu_in * nu_in) * (1.0 - nu_out * nu_out))
+                    .max(0.0)
+                    .sqrt()
+                    * dphi.cos();
+            let mut m = [[0.0; 4]; 4];
+            m[0][0] = f(x.clamp(-1.0, 1.0))[0];
+            m
+        };
+        if let Some((r_mu, r_mu0)) = &reflections {
+            if before {
+                m = mul(r_mu, &m);
+            }
+            if after {
+                m = mul(&m, r_mu0);
+            }
+        }
+        for i in 0..4 {
+            for j in 0..4 {
+                out[i][j] += m[i][j];
+            }
+        }
     }
     out
 }
@@ -427,31 +448,26 @@ impl SingleScatterCorrection {
             if !l.is_truncated() {
                 continue; // the two terms are equal
             }
-            let full = layer_single_scattering(
-                &l.coef,
-                l.omega,
-                l.tau_top,
-                l.tau,
-                self.polarized,
-                mirror,
-                mu,
-                mu0,
-                dphi_prop,
-            );
-            let trunc = layer_single_scattering(
-                &l.coef_t,
-                l.omega_t,
-                l.tau_top_t,
-                l.tau_t,
-                self.polarized,
-                mirror,
-                mu,
-                mu0,
-                dphi_prop,
-            );
+            let terms = [
+                ScatteringTerm {
+                    coef: &l.coef,
+                    omega: l.omega,
+                    top: l.tau_top,
+                    tau: l.tau,
+                    sign: 1.0,
+                },
+                ScatteringTerm {
+                    coef: &l.coef_t,
+                    omega: l.omega_t,
+                    top: l.tau_top_t,
+                    tau: l.tau_t,
+                    sign: -1.0,
+                },
+            ];
+            let d = layers_single_scattering(&terms, self.polarized, mirror, mu, mu0, dphi_prop);
             for i in 0..4 {
                 for j in 0..4 {
-                    out[i][j] += full[i][j] - trunc[i][j];
+                    out[i][j] += d[i][j];
                 }
             }
         }
@@ -472,11 +488,14 @@ pub fn single_scattering(problem: &Problem, mu: f64, mu0: f64, dphi_prop: f64) -
     let mut out = [[0.0; 4]; 4];
     for l in &problem.layers {
         let tau = l.thickness.value();
-        let m = layer_single_scattering(
-            &l.coef,
-            l.albedo,
-            top,
-            tau,
+        let m = layers_single_scattering(
+            &[ScatteringTerm {
+                coef: &l.coef,
+                omega: l.albedo,
+                top,
+                tau,
+                sign: 1.0,
+            }],
             problem.settings.polarized,
             mirror.as_ref(),
             mu,

@@ -363,9 +363,9 @@ mod tests {
             let direct = without_times(built(&request));
             let mut cut = without_times(covered(&full, &request).unwrap());
             assert_eq!(cut.wavelengths, direct.wavelengths, "{needs}");
-            // A cut series keeps the statement measured on all orders: at
-            // least what the cut orders alone measure (the same pairs, fewer
-            // non-negative terms).
+            // A cut series keeps the statement measured on all orders,
+            // rescaled to its own largest f11: at least what the cut orders
+            // alone measure (the same pairs, fewer non-negative terms).
             let (c, d) = (
                 cut.metadata.wavelengths[0].interpolation_error.unwrap(),
                 direct.metadata.wavelengths[0].interpolation_error.unwrap(),

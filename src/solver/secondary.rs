@@ -83,9 +83,9 @@
 //! mirror paths of single scattering), nor are paths via a Lambertian base
 //! (it sees the azimuthal average, where the residual integrates to zero).
 
+use super::depth::{divided_difference, e_int, segment};
 use super::layer::mm;
 use super::phase::Gsf;
-use super::truncation::segment;
 use crate::physics::expansion::GreekCoefficients;
 use crate::physics::quadrature::{double_gauss, gauss_legendre_on};
 use faer::Mat;
@@ -115,53 +115,6 @@ impl ScaledLayer {
     fn truncated(&self) -> bool {
         self.fx[0] > 0.0 || self.trunc != self.full || self.omega_trunc != self.omega_full
     }
-}
-
-/// `E_T(s) = ∫_0^T e^{−st} dt` for `s ≥ 0` (`T` may be infinite when `s > 0`).
-fn e_int(s: f64, t: f64) -> f64 {
-    if t.is_infinite() {
-        return 1.0 / s;
-    }
-    let x = s * t;
-    if x.abs() < 1e-8 {
-        t * (1.0 - 0.5 * x)
-    } else {
-        -(-x).exp_m1() / s
-    }
-}
-
-/// `M_n(s) = ∫_0^T tⁿ e^{−st} dt` for `n = 1, 3`, `s > 0`, `T` finite.
-fn moment(n: i32, s: f64, t: f64) -> f64 {
-    let x = s * t;
-    if x < 1.0 {
-        // T^{n+1} Σ_k (−x)^k / (k! (n + 1 + k))
-        let (mut term, mut sum) = (1.0, 0.0);
-        for k in 0..40 {
-            sum += term / (n + 1 + k) as f64;
-            term *= -x / (k + 1) as f64;
-        }
-        t.powi(n + 1) * sum
-    } else {
-        let e = (-x).exp();
-        match n {
-            1 => (1.0 - e * (1.0 + x)) / (s * s),
-            _ => (6.0 - e * (6.0 + x * (6.0 + x * (3.0 + x)))) / s.powi(4),
-        }
-    }
-}
-
-/// The divided difference `(E_T(x) − E_T(y))/(y − x)` for `x, y > 0`, stable
-/// as `y → x` (then `−E'` at the midpoint plus its `(y − x)²` term).
-fn divided_difference(x: f64, y: f64, t: f64) -> f64 {
-    if t.is_infinite() {
-        return 1.0 / (x * y);
-    }
-    let d = y - x;
-    if (d * t).abs() > 1e-3 {
-        return (e_int(x, t) - e_int(y, t)) / d;
-    }
-    let s = 0.5 * (x + y);
-    moment(1, s, t) + d * d / 24.0 * moment(3, s, t)
 }
 
 /// Double-scattering geometry `G_{jk}` (module docs): beam down at
@@ -996,9 +949,9 @@ mod tests {
             let g = PairGeometry::new(&inv_mu, &inv_x, j, k);
             for u in 0..inv_mu.len() {
                 for v in 0..inv_mu.len() {
-                    for q in 0..inv_x.len() {
+                    for (q, &c) in inv_x.iter().enumerate() {
                         for up in [false, true] {
-                            let (a, b, c) = (inv_mu[v], inv_mu[u], inv_x[q]);
+                            let (a, b) = (inv_mu[v], inv_mu[u]);
                             let want = geometry(a, b, c, up, j, k);
                             let got = g.at(u, v, q, up);
                             let err = (got - want).abs() / want.abs().max(1e-300);

@@ -44,6 +44,7 @@
 //! It removes the backscatter-glory error and most of the grazing one of
 //! forward-peaked Mie spheres (docs/solver.md).
 
+use super::depth::segment;
 use super::phase::geometric_phase_matrix;
 use super::secondary::{ScaledLayer, secondary};
 use super::{Layer, Problem, SolverError, Thickness};
@@ -263,27 +264,6 @@ pub fn delta_m(problem: &Problem) -> Result<Truncated, SolverError> {
             streams: n,
         }),
     })
-}
-
-/// `∫_a^{a+τ} exp(−(α + c t)) dt`, without overflow for either sign of `c`
-/// (`τ` may be infinite when `c > 0`).
-pub(crate) fn segment(alpha: f64, c: f64, a: f64, tau: f64) -> f64 {
-    if tau <= 0.0 {
-        return 0.0;
-    }
-    if (c * tau).abs() < 1e-12 {
-        return (-(alpha + c * a)).exp() * tau;
-    }
-    if c > 0.0 {
-        let through = if tau.is_finite() {
-            -(-c * tau).exp_m1()
-        } else {
-            1.0
-        };
-        (-(alpha + c * a)).exp() * through / c
-    } else {
-        (-(alpha + c * (a + tau))).exp() * -(c * tau).exp_m1() / -c
-    }
 }
 
 fn mul(a: &Mueller, b: &Mueller) -> Mueller {

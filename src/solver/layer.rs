@@ -1070,6 +1070,164 @@ impl TopOps {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::solver::orders::{Grid, layer_ops};
+    use crate::solver::{Layer, Settings, Thickness};
+
+    /// A polarized Garcia–Siewert layer (order `m`, 6 streams, three user
+    /// cosines), the discretisation and settings it was built with.
+    fn slab(tau: f64, albedo: f64, m: usize) -> (Ops, Grid, Settings) {
+        let settings = Settings {
+            streams: 6,
+            ..Settings::default()
+        };
+        let grid = Grid::new(&settings, &[0.15, 0.55, 0.95]);
+        let layer = Layer {
+            thickness: Thickness::Finite(tau),
+            albedo,
+            coef: crate::physics::expansion::test_data::garcia_siewert().truncated(11),
+        };
+        (layer_ops(&grid, &layer, m, &settings, true), grid, settings)
+    }
+
+    /// `(max |a − b|, max |b|)` over every block of two operators.
+    fn ops_diff(a: &Ops, b: &Ops) -> (f64, f64) {
+        let blocks = |o: &Ops| {
+            [
+                o.r.clone(),
+                o.t.clone(),
+                o.rs.clone(),
+                o.ts.clone(),
+                o.ru.clone(),
+                o.tu.clone(),
+                o.rus.clone(),
+                o.tus.clone(),
+                o.rb.clone(),
+                o.tb.clone(),
+                o.rbs.clone(),
+                o.tbs.clone(),
+                o.ruu.clone(),
+                o.tuu.clone(),
+                o.ruus.clone(),
+                o.tuus.clone(),
+            ]
+        };
+        let (mut d, mut scale): (f64, f64) = (0.0, 0.0);
+        for (x, y) in blocks(a).iter().zip(&blocks(b)) {
+            d = d.max(max_abs((x - y).as_ref()));
+            scale = scale.max(max_abs(y.as_ref()));
+        }
+        for (x, y) in a.eu.iter().zip(&b.eu) {
+            d = d.max((x - y).abs());
+        }
+        (d, scale)
+    }
+
+    /// Adding an empty slab above or below changes nothing.
+    #[test]
+    fn adding_a_layer_of_zero_thickness_is_the_identity() {
+        for m in [0, 2] {
+            let (a, g, _) = slab(0.7, 0.95, m);
+            let vacuum = Ops::vacuum(a.n, a.nu, g.ns);
+            for (name, sum) in [
+                ("above", add(&vacuum, &a, true)),
+                ("below", add(&a, &vacuum, true)),
+            ] {
+                let (d, scale) = ops_diff(&sum, &a);
+                assert!(
+                    d <= 1e-14 * scale,
+                    "m = {m}, vacuum {name}: {d:e} of {scale:e}"
+                );
+            }
+        }
+    }
+
+    /// `(A + B) + C = A + (B + C)` for three different slabs.
+    #[test]
+    fn adding_is_associative() {
+        for m in [0, 1, 3] {
+            let (a, _, _) = slab(0.3, 0.9, m);
+            let (b, _, _) = slab(1.1, 0.99, m);
+            let (c, _, _) = slab(0.05, 0.5, m);
+            let left = add(&add(&a, &b, true), &c, true);
+            let right = add(&a, &add(&b, &c, true), true);
+            let (d, scale) = ops_diff(&left, &right);
+            assert!(d <= 1e-13 * scale, "m = {m}: {d:e} of {scale:e}");
+        }
+    }
+
+    /// One doubling step of the top-only path equals adding the layer to
+    /// itself, and a layer of `2τ` built by `layer_ops` equals two of `τ`
+    /// added (to its start layer's extrapolated discretisation error).
+    #[test]
+    fn doubling_is_adding_the_same_layer_twice() {
+        for m in [0, 2] {
+            let (a, g, settings) = slab(0.4, 0.97, m);
+            let added = add(&a, &a, true);
+            let doubled = double_top(&TopOps::from_ops(&a), g.ns);
+            for (name, x, y) in [
+                ("R", &doubled.r, &added.r),
+                ("T", &doubled.t, &added.t),
+                ("Ru", &doubled.ru, &added.ru),
+                ("Tu*", &doubled.tus, &added.tus),
+            ] {
+                let d = max_abs((x - y).as_ref());
+                let scale = max_abs(y.as_ref());
+                // The same equations in another order: round-off through
+                // the factorisation of I − R*R (1.0e-13 of max Tu* at m = 0
+                // seen); a wrong term is O(1e-3) or more.
+                assert!(
+                    d <= 1e-12 * scale.max(1e-300),
+                    "m = {m}, {name}: {d:e} of {scale:e}"
+                );
+            }
+            assert_eq!(doubled.eu, added.eu);
+            let layer = Layer {
+                thickness: Thickness::Finite(0.8),
+                albedo: 0.97,
+                coef: crate::physics::expansion::test_data::garcia_siewert().truncated(11),
+            };
+            let thick = layer_ops(&g, &layer, m, &settings, true);
+            let (d, scale) = ops_diff(&thick, &added);
+            assert!(d <= 1e-9 * scale, "m = {m}, 2 tau: {d:e} of {scale:e}");
+        }
+    }
+
+    /// Adding a slab over a mirror base (`add_mirror`) equals, on the
+    /// quadrature streams, the generic adding equations with a reflector
+    /// whose reflection is the mirror (`R = R_a + T*_a M (I − R*_a M)⁻¹ T_a`;
+    /// the user rows differ by design: `add_mirror` also reflects the
+    /// zero-weight user radiance, which a reflector's blocks cannot carry),
+    /// and over an empty slab it is the mirror itself with no diffuse light.
+    #[test]
+    fn the_mirror_equals_its_closed_form() {
+        let fresnel = |mu: f64| {
+            crate::physics::fresnel::mueller(
+                1.0,
+                crate::physics::RefractiveIndex::new(0.13, 3.4),
+                mu,
+            )
+            .unwrap()
+        };
+        for m in [0, 1] {
+            let (a, g, _) = slab(0.6, 0.9, m);
+            let mq = crate::solver::orders::mirror_blocks(&g.mu_q, g.ns, &fresnel);
+            let mu_blocks = crate::solver::orders::mirror_blocks(&g.mu_u, g.ns, &fresnel);
+            let top = add_mirror(&a, &mq, &mu_blocks);
+            let mut base = Ops::reflector(a.n, a.nu, g.ns);
+            base.r = mq.clone();
+            let added = add(&a, &base, true);
+            let d = max_abs((&top.r - &added.r).as_ref());
+            let scale = max_abs(added.r.as_ref());
+            assert!(d <= 1e-13 * scale, "m = {m}: {d:e} of {scale:e}");
+            let empty = Ops::vacuum(a.n, a.nu, g.ns);
+            let bare = add_mirror(&empty, &mq, &mu_blocks);
+            assert!(max_abs((&bare.r - &mq).as_ref()) == 0.0);
+            assert!(
+                max_abs(bare.ruu.as_ref()) <= 1e-300,
+                "no diffuse user light from a bare mirror"
+            );
+        }
+    }
 
     #[test]
     fn source_weights_limits() {

@@ -17,11 +17,13 @@ use crate::material::canonical::canonical_json;
 /// Version of the spec schema mixed into every id.
 pub const SCHEMA_VERSION: &str = "1";
 
-/// Version of the solver's results mixed into every id. Version 3: the
-/// Greek coefficient `ε` is read and written in the Siewert sign of
-/// conventions §4 (`b2 = −Σ ε_l d^l_02`); version 2 read a user's `ε` with the
-/// opposite sign, so every result with an `expansion` layer changed.
-pub const SOLVER_VERSION: &str = "3";
+/// Version of the solver's results mixed into every id. Version 4: a
+/// `solver.tolerance` also bounds the Fourier orders synthesized
+/// (`plan::FOURIER_SHARE_OF_TOLERANCE`), so results of tolerance specs
+/// changed. Version 3: the Greek coefficient `ε` is read and written in the
+/// Siewert sign of conventions §4 (`b2 = −Σ ε_l d^l_02`); version 2 read a
+/// user's `ε` with the opposite sign.
+pub const SOLVER_VERSION: &str = "4";
 
 /// The version label stored with every cached row: `"polbrdf-spec/S
 /// polbrdf-solver/V"`. A row with another label is never served (docs/service.md).
@@ -71,7 +73,7 @@ mod tests {
         assert_eq!(id_of_spec(&a), id_of_spec(&b));
         let (c, id) = id_of_spec(&a);
         assert_eq!(id, digest::sha256_hex(id_preimage(&c).as_bytes()));
-        assert!(id_preimage(&c).starts_with("polbrdf-spec/1\npolbrdf-solver/3\n{"));
+        assert!(id_preimage(&c).starts_with("polbrdf-spec/1\npolbrdf-solver/4\n{"));
     }
 
     #[test]

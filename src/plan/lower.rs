@@ -144,14 +144,33 @@ pub fn problem(spec: &Spec, wavelength_nm: Option<f64>) -> Result<Problem, SpecE
     })
 }
 
-/// The solver settings of a spec (the same at every wavelength).
+/// The share of a `solver.tolerance` the Fourier azimuth series may leave
+/// out: a tolerance `t` stops the series after two consecutive orders below
+/// `1e-2 t` of order 0 (`Settings::fourier_tolerance`, never below its
+/// default 1e-9). Measured (24 user cosines × 13 azimuths against the
+/// converged series): the left-out tail is at most 0.24× the stopping
+/// threshold (a semi-infinite conservative HG layer, g = 0.7), so at most
+/// 0.0024 t; TiO2 (r = 0.2 µm) at `t = 1e-2` keeps 11 of 14 orders.
+pub const FOURIER_SHARE_OF_TOLERANCE: f64 = 1e-2;
+
+/// The solver settings of a spec (the same at every wavelength): a
+/// `solver.tolerance` also bounds the Fourier orders synthesized
+/// ([`FOURIER_SHARE_OF_TOLERANCE`]).
 pub fn settings(spec: &Spec) -> Settings {
+    let default = Settings::default();
+    let fourier_tolerance = match stream_policy(spec) {
+        StreamPolicy::Tolerance(t) => {
+            (FOURIER_SHARE_OF_TOLERANCE * t).max(default.fourier_tolerance)
+        }
+        StreamPolicy::Fixed(_) => default.fourier_tolerance,
+    };
     Settings {
         streams: spec.solver.streams.unwrap_or(DEFAULT_STREAMS),
         polarized: spec.solver.polarized,
         secondary_scattering: spec.solver.secondary_scattering,
         max_order: spec.needs.max_order(),
-        ..Settings::default()
+        fourier_tolerance,
+        ..default
     }
 }
 

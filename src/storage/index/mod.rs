@@ -416,6 +416,7 @@ mod tests {
     //! its own, dropped at the end). Unset, the PostgreSQL half prints
     //! SKIPPED and passes, except under `CI=true`, where it fails.
     use super::*;
+    use std::io::Write;
     use std::path::PathBuf;
 
     /// A scratch database (a SQLite file or a PostgreSQL schema), removed
@@ -491,7 +492,10 @@ mod tests {
                 )
             }
             _ => {
-                eprintln!(
+                // To stderr itself, not eprintln!: the test harness
+                // captures the macros' output of a passing test.
+                let _ = writeln!(
+                    std::io::stderr(),
                     "SKIPPED: storage::index::tests::{test} on PostgreSQL: \
                      set POLBRDF_TEST_DATABASE_URL=postgres://USER@HOST:PORT/DB to run it"
                 );
@@ -652,6 +656,37 @@ mod tests {
     #[tokio::test]
     async fn listing_and_families_on_both() {
         on_both("listing_and_families", listing_and_families).await;
+    }
+
+    /// Instances starting at once on one PostgreSQL database: sqlx's
+    /// advisory lock makes one apply the migrations, the others find them
+    /// applied (SQLite is one process's file: not tried there).
+    #[tokio::test]
+    async fn postgres_opens_at_once_migrate_once() {
+        let Some(s) = Scratch::postgres("opens_at_once").await else {
+            return;
+        };
+        let open = || Index::open(&s.url);
+        let (a, b, c, d) = tokio::join!(open(), open(), open(), open());
+        let indexes = [a, b, c, d].map(Result::unwrap);
+        for ix in &indexes {
+            assert_eq!(ix.backend(), Backend::Postgres);
+            ix.ping().await.unwrap();
+        }
+        let Cleanup::Schema(admin, schema) = &s.cleanup else {
+            unreachable!("a PostgreSQL scratch is a schema")
+        };
+        let applied: i64 = sqlx::query_scalar(sqlx::AssertSqlSafe(format!(
+            "SELECT COUNT(*) FROM {schema}._sqlx_migrations WHERE success"
+        )))
+        .fetch_one(admin)
+        .await
+        .unwrap();
+        assert_eq!(applied, 1);
+        for ix in indexes {
+            ix.close().await;
+        }
+        s.remove().await;
     }
 
     #[test]

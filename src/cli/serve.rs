@@ -22,7 +22,7 @@ pub struct ServeArgs {
     /// Data directory: SQLite index and result blobs [env POLBRDF_DATA_DIR; default ./polbrdf-data].
     #[arg(long)]
     pub data_dir: Option<PathBuf>,
-    /// sqlx SQLite URL of the index [env POLBRDF_DATABASE_URL; default sqlite://DATA_DIR/polbrdf.sqlite].
+    /// Database of the index: sqlite:PATH or postgres://USER@HOST/DB [env POLBRDF_DATABASE_URL; default sqlite://DATA_DIR/polbrdf.sqlite].
     #[arg(long)]
     pub database_url: Option<String>,
     /// Solver threads [env POLBRDF_WORKERS; default: the number of cores].
@@ -118,10 +118,11 @@ pub fn config_from(
             .map_err(|e| format!("--listen {l}: {e} (give IP:PORT, e.g. 127.0.0.1:8080)"))?;
     }
     if let Some(u) = pick(args.database_url.clone(), "database-url", env)? {
-        if !u.starts_with("sqlite:") {
-            return Err(format!(
-                "--database-url {u}: only sqlite: URLs are supported by this build"
-            ));
+        if crate::storage::Backend::of_url(&u).is_none() {
+            // Not echoed: a URL may hold a password.
+            return Err(
+                "--database-url: give a sqlite:, postgres:// or postgresql:// URL".to_string(),
+            );
         }
         c.database_url = u;
     }
@@ -308,6 +309,32 @@ mod tests {
         assert_eq!(c.listen.to_string(), "127.0.0.1:8080");
         let d = config_from(&ServeArgs::default(), &|_| None).unwrap();
         assert_eq!(d, Config::default());
+    }
+
+    #[test]
+    fn database_url_names_a_backend() {
+        for url in [
+            "sqlite:///tmp/x.sqlite",
+            "postgres://polbrdf@127.0.0.1:5432/polbrdf",
+            "postgresql://db.internal/polbrdf",
+        ] {
+            let env = |k: &str| (k == "POLBRDF_DATABASE_URL").then(|| url.to_string());
+            assert_eq!(
+                config_from(&ServeArgs::default(), &env)
+                    .unwrap()
+                    .database_url,
+                url
+            );
+        }
+        let args = ServeArgs {
+            database_url: Some("mysql://u:hunter2@h/db".into()),
+            ..Default::default()
+        };
+        let e = config_from(&args, &|_| None).unwrap_err();
+        assert!(
+            e.contains("--database-url") && !e.contains("hunter2"),
+            "{e}"
+        );
     }
 
     #[test]

@@ -21,9 +21,11 @@ pub struct Config {
     /// Address to listen on (port 0: any free port; the bound address is
     /// printed on stdout).
     pub listen: SocketAddr,
-    /// Data directory: the SQLite index (by default) and `blobs/`.
+    /// Data directory: the SQLite index (by default) and `blobs/` (also
+    /// with a PostgreSQL index).
     pub data_dir: PathBuf,
-    /// sqlx SQLite URL of the index.
+    /// sqlx URL of the index: `sqlite:…` or `postgres://…` / `postgresql://…`
+    /// (`storage::Backend::of_url`).
     pub database_url: String,
     /// Solver threads.
     pub workers: usize,

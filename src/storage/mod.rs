@@ -1,6 +1,6 @@
 //! The service's storage (docs/service.md, "Storage"): an index of jobs and
-//! results in SQLite ([`index`]) and a content-addressed blob directory
-//! ([`blobs`]).
+//! results in SQLite or PostgreSQL ([`index`]) and a content-addressed blob
+//! directory ([`blobs`]).
 //!
 //! ```text
 //! <data-dir>/
@@ -17,14 +17,17 @@ pub mod blobs;
 pub mod index;
 
 pub use blobs::BlobStore;
-pub use index::{Index, JobRow, Status};
+pub use index::{Backend, Index, JobRow, Status};
 
 /// Storage errors (logged in full; clients see a generic 500).
 #[derive(Debug, thiserror::Error)]
 pub enum StorageError {
-    /// The SQLite index failed.
+    /// The index database (SQLite or PostgreSQL) failed.
     #[error("database: {0}")]
     Database(#[from] sqlx::Error),
+    /// A database URL of a scheme no backend serves.
+    #[error("database URL of scheme '{0}': give sqlite:PATH, postgres://… or postgresql://…")]
+    UnsupportedUrl(String),
     /// Embedded migrations could not be applied.
     #[error("database migration: {0}")]
     Migrate(#[from] sqlx::migrate::MigrateError),

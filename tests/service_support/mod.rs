@@ -3,6 +3,8 @@
 //! its stdout, and talk to it with reqwest.
 #![allow(dead_code)]
 
+pub mod postgres;
+
 use serde_json::Value;
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};

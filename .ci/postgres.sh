@@ -22,7 +22,8 @@ pg_dir=$(mktemp -d "${TMPDIR:-/tmp}/polbrdf-pg.XXXXXX")
 chown postgres "$pg_dir"
 stop_postgres() {
   if [ -e "$pg_dir/data/postmaster.pid" ]; then
-    runuser -u postgres -- "$pg_bin/pg_ctl" -D "$pg_dir/data" -m fast -w stop > /dev/null || true
+    # From / : the postgres user may not enter the current directory.
+    (cd / && runuser -u postgres -- "$pg_bin/pg_ctl" -D "$pg_dir/data" -m fast -w stop > /dev/null) || true
   fi
   rm -rf "$pg_dir"
 }

@@ -75,6 +75,14 @@ impl Table {
             if orders < b.orders && needs.error_estimate {
                 return Err("a cut series with an estimate".into());
             }
+            // The cached statement is relative to the largest f11 of the
+            // whole series, the served one to that of the cut series.
+            if orders < b.orders {
+                let ratio = largest_f11(b, b.orders) / largest_f11(b, orders);
+                if let Some(e) = &mut meta.interpolation_error {
+                    *e *= ratio.max(1.0);
+                }
+            }
             let shape = Shape {
                 rows,
                 cols,
@@ -99,16 +107,7 @@ impl Table {
                 {
                     return Err(format!("incident node {i} is not held"));
                 }
-                let block = cut(b, &shape);
-                // The statement is relative to the largest f11: of the
-                // whole series as cached, of the cut series as served.
-                if block.orders < b.orders {
-                    let ratio = largest_f11(b) / largest_f11(&block);
-                    if let Some(e) = &mut meta.interpolation_error {
-                        *e *= ratio.max(1.0);
-                    }
-                }
-                block
+                cut(b, &shape)
             };
             meta.fourier_orders = block.orders;
             if !needs.error_estimate {
@@ -145,14 +144,14 @@ impl WavelengthTable {
     }
 }
 
-/// The largest `|f11|` at `Δφ = 0` and `π` over the nodes a block holds
-/// (T1), the scale of its relative statements.
-fn largest_f11(b: &WavelengthTable) -> f64 {
+/// The largest `|f11|` at `Δφ = 0` and `π` of the first `orders` orders
+/// over the nodes a block holds (T1), the scale of its relative statements.
+fn largest_f11(b: &WavelengthTable, orders: usize) -> f64 {
     let mut max: f64 = 0.0;
     for o in 0..b.nodes {
         for &i in &b.incident {
             let (mut at0, mut at_pi) = (0.0, 0.0);
-            for m in 0..b.orders {
+            for m in 0..orders {
                 let w = if m == 0 { 1.0 } else { 2.0 } / (2.0 * std::f64::consts::PI);
                 let v = w * b.node(m, o, i)[0][0];
                 at0 += v;

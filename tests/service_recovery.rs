@@ -39,7 +39,10 @@ async fn jobs_survive_a_crash_and_a_graceful_restart() {
     assert_eq!(a["wall_time_ms"].as_array().unwrap().len(), 3);
     assert_eq!(b["progress"], 1.0);
     let log = s.log_text();
-    assert!(log.contains("job re-queued at start"), "{log}");
+    assert!(
+        log.contains("job left running by an earlier run; queued again"),
+        "{log}"
+    );
 
     // Graceful: SIGTERM with a running and a queued job exits 0 within the
     // grace period; whatever did not finish is solved after the restart.

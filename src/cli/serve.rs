@@ -25,7 +25,7 @@ pub struct ServeArgs {
     /// Database of the index: sqlite:PATH or postgres://USER@HOST/DB [env POLBRDF_DATABASE_URL; default sqlite://DATA_DIR/polbrdf.sqlite].
     #[arg(long)]
     pub database_url: Option<String>,
-    /// Solver threads [env POLBRDF_WORKERS; default: the number of cores].
+    /// Solver threads; 0 serves without solving (other instances on the same database solve) [env POLBRDF_WORKERS; default: the number of cores].
     #[arg(long)]
     pub workers: Option<usize>,
     /// Jobs allowed to wait for a worker; beyond it POST gets 503 [env POLBRDF_MAX_QUEUE; default 1024].
@@ -70,9 +70,15 @@ pub struct ServeArgs {
     /// Seconds running jobs may take to finish at shutdown before they are re-queued [env POLBRDF_SHUTDOWN_GRACE_SECS; default 30].
     #[arg(long)]
     pub shutdown_grace_secs: Option<u64>,
-    /// Starts of one job before it is abandoned (crash-loop guard) [env POLBRDF_MAX_ATTEMPTS; default 3].
+    /// Claims of one job before it is abandoned (crash-loop guard) [env POLBRDF_MAX_ATTEMPTS; default 3].
     #[arg(long)]
     pub max_attempts: Option<i64>,
+    /// This instance's id, the owner of its job leases, in logs and metrics [env POLBRDF_INSTANCE_ID; default HOSTNAME-PID].
+    #[arg(long)]
+    pub instance_id: Option<String>,
+    /// Seconds a running job's lease holds without renewal; a job whose instance died is solved elsewhere after it [env POLBRDF_LEASE_SECS; default 30].
+    #[arg(long)]
+    pub lease_secs: Option<u64>,
 }
 
 fn pick<T: std::str::FromStr>(
@@ -129,7 +135,7 @@ pub fn config_from(
     let n = |v: Option<usize>, name: &str, lo: usize, hi: usize| -> Result<Option<usize>, String> {
         at_least(pick(v, name, env)?, name, lo, hi)
     };
-    if let Some(w) = n(args.workers, "workers", 1, 4096)? {
+    if let Some(w) = n(args.workers, "workers", 0, 4096)? {
         c.workers = w;
     }
     if let Some(q) = n(args.max_queue, "max-queue", 0, 1 << 24)? {
@@ -196,6 +202,21 @@ pub fn config_from(
             return Err(format!("--max-attempts = {a} must be at least 1"));
         }
         c.max_attempts = a;
+    }
+    if let Some(i) = pick(args.instance_id.clone(), "instance-id", env)? {
+        let ok = !i.is_empty() && i.len() <= 128 && i.chars().all(|ch| ch.is_ascii_graphic());
+        if !ok {
+            return Err(format!(
+                "--instance-id {i:?}: give 1 to 128 printable ASCII characters without spaces"
+            ));
+        }
+        c.instance_id = i;
+    }
+    if let Some(l) = pick(args.lease_secs, "lease-secs", env)? {
+        if !(1..=86_400).contains(&l) {
+            return Err(format!("--lease-secs = {l} is outside [1, 86400]"));
+        }
+        c.lease = Duration::from_secs(l);
     }
     Ok(c)
 }
@@ -307,6 +328,19 @@ mod tests {
         assert_eq!(c.database_url, "sqlite:///tmp/x/polbrdf.sqlite");
         assert_eq!(c.token.as_deref(), Some("s3cret"));
         assert_eq!(c.listen.to_string(), "127.0.0.1:8080");
+        assert_eq!(c.lease, Duration::from_secs(30));
+        assert!(c.instance_id.ends_with(&format!("-{}", std::process::id())));
+        let farm = |k: &str| match k {
+            "POLBRDF_WORKERS" => Some("0".to_string()),
+            "POLBRDF_INSTANCE_ID" => Some("render-api-1".to_string()),
+            "POLBRDF_LEASE_SECS" => Some("5".to_string()),
+            _ => None,
+        };
+        let c = config_from(&ServeArgs::default(), &farm).unwrap();
+        assert_eq!(
+            (c.workers, c.instance_id.as_str(), c.lease),
+            (0, "render-api-1", Duration::from_secs(5))
+        );
         let d = config_from(&ServeArgs::default(), &|_| None).unwrap();
         assert_eq!(d, Config::default());
     }
@@ -361,5 +395,15 @@ mod tests {
             ..Default::default()
         };
         assert!(config_from(&args, &|_| None).is_err());
+        for (var, value) in [("POLBRDF_LEASE_SECS", "0"), ("POLBRDF_INSTANCE_ID", "a b")] {
+            let e = config_from(&ServeArgs::default(), &|k| (k == var).then(|| value.into()))
+                .unwrap_err();
+            let flag = if var.contains("LEASE") {
+                "--lease-secs"
+            } else {
+                "--instance-id"
+            };
+            assert!(e.contains(flag), "{e}");
+        }
     }
 }

@@ -112,6 +112,10 @@ pub struct BrdfResource {
     pub updated_at: String,
     /// RFC 3339, when the job became done or failed.
     pub finished_at: Option<String>,
+    /// The instance (`--instance-id`) solving the job, while it is
+    /// running.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub worker: Option<String>,
     /// Related resources.
     pub links: Links,
     /// In the answer to `POST /v1/brdfs` only: the ids of the cached
@@ -145,6 +149,7 @@ impl BrdfResource {
             created_at: rfc3339(row.created_at),
             updated_at: rfc3339(row.updated_at),
             finished_at: row.finished_at.map(rfc3339),
+            worker: row.worker.clone().filter(|_| row.status == Status::Running),
             links: Links::of(&row.id),
             covered_by: None,
         }

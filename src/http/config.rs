@@ -27,7 +27,7 @@ pub struct Config {
     /// sqlx URL of the index: `sqlite:…` or `postgres://…` / `postgresql://…`
     /// (`storage::Backend::of_url`).
     pub database_url: String,
-    /// Solver threads.
+    /// Solver threads (`0`: serve only; other instances solve).
     pub workers: usize,
     /// Jobs allowed to wait for a worker; more submissions get 503.
     pub max_queue: usize,
@@ -46,8 +46,13 @@ pub struct Config {
     /// How long running jobs may take to finish at shutdown before they
     /// are re-queued.
     pub shutdown_grace: Duration,
-    /// Starts of one job before it is abandoned (crash-loop guard).
+    /// Claims of one job before it is abandoned (crash-loop guard).
     pub max_attempts: i64,
+    /// This instance's id: the owner of its leases, in logs and in the
+    /// `instance` label of its metrics.
+    pub instance_id: String,
+    /// How long a claimed job's lease holds without a renewal.
+    pub lease: Duration,
 }
 
 /// Caps on what one spec may ask for.
@@ -109,6 +114,8 @@ impl Config {
             log_filter: "info".into(),
             shutdown_grace: Duration::from_secs(30),
             max_attempts: 3,
+            instance_id: crate::jobs::default_instance_id(),
+            lease: Duration::from_secs(30),
         }
     }
 }

@@ -301,6 +301,8 @@ pub async fn serve(
             max_queue: config.max_queue,
             max_attempts: config.max_attempts,
             max_streams: config.limits.max_streams,
+            instance_id: config.instance_id.clone(),
+            lease: config.lease,
         },
     )
     .await?;
@@ -312,7 +314,8 @@ pub async fn serve(
         })?;
     let addr = listener.local_addr()?;
     let grace = config.shutdown_grace;
-    tracing::info!(%addr, data_dir = %config.data_dir.display(), workers = config.workers, "serving");
+    tracing::info!(%addr, data_dir = %config.data_dir.display(), workers = config.workers,
+        instance = %config.instance_id, "serving");
     on_bound(addr);
     let state = AppState(Arc::new(App {
         config,

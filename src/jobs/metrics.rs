@@ -77,12 +77,17 @@ pub struct Metrics {
     pub solves_failed: AtomicU64,
     /// Stored results found missing or corrupt (and solved again).
     pub blobs_invalid: AtomicU64,
+    /// Lapsed leases this instance found and released (their jobs queued
+    /// again).
+    pub leases_expired: AtomicU64,
+    /// Claims by this instance of jobs an earlier claim did not finish.
+    pub reclaimed: AtomicU64,
 }
 
 /// Gauges read at scrape time.
 #[derive(Clone, Debug, Default)]
 pub struct Gauges {
-    /// Jobs waiting for a worker (in this process).
+    /// Jobs waiting for a worker (over every instance on the index).
     pub queue_depth: usize,
     /// Queue capacity.
     pub queue_capacity: usize,
@@ -92,6 +97,12 @@ pub struct Gauges {
     pub workers: usize,
     /// Rows per state in the index.
     pub jobs_by_state: Vec<(&'static str, i64)>,
+    /// This instance's id (the `instance` label).
+    pub instance: String,
+    /// Database connections of the pool in use.
+    pub db_connections_in_use: u32,
+    /// Idle database connections of the pool.
+    pub db_connections_idle: u32,
 }
 
 impl Metrics {
@@ -151,7 +162,7 @@ impl Metrics {
         gauge(
             &mut out,
             "polbrdf_queue_depth",
-            "Jobs waiting for a worker.",
+            "Jobs waiting for a worker (over every instance on the index).",
             g.queue_depth as f64,
         );
         gauge(
@@ -227,6 +238,29 @@ impl Metrics {
             "Stored results found missing or corrupt (solved again, never served).",
             load(&self.blobs_invalid),
         );
+        let instance = escape(&g.instance);
+        let _ = writeln!(
+            out,
+            "# HELP polbrdf_leases_expired_total Lapsed leases this instance released (their jobs queued again).\n\
+             # TYPE polbrdf_leases_expired_total counter\n\
+             polbrdf_leases_expired_total{{instance=\"{instance}\"}} {}",
+            load(&self.leases_expired)
+        );
+        let _ = writeln!(
+            out,
+            "# HELP polbrdf_jobs_reclaimed_total Jobs this instance claimed after an earlier claim did not finish.\n\
+             # TYPE polbrdf_jobs_reclaimed_total counter\n\
+             polbrdf_jobs_reclaimed_total{{instance=\"{instance}\"}} {}",
+            load(&self.reclaimed)
+        );
+        let _ = writeln!(
+            out,
+            "# HELP polbrdf_db_pool_connections Connections of this instance's database pool by state.\n\
+             # TYPE polbrdf_db_pool_connections gauge\n\
+             polbrdf_db_pool_connections{{instance=\"{instance}\",state=\"in_use\"}} {}\n\
+             polbrdf_db_pool_connections{{instance=\"{instance}\",state=\"idle\"}} {}",
+            g.db_connections_in_use, g.db_connections_idle
+        );
         out.push_str("# HELP polbrdf_solve_seconds Wall time of finished solves.\n# TYPE polbrdf_solve_seconds histogram\n");
         self.solve_seconds.lock().expect("metrics lock").render(
             &mut out,
@@ -272,5 +306,20 @@ mod tests {
         assert!(t.contains("polbrdf_cache_hits_total 3"));
         assert!(t.contains("polbrdf_queue_depth 2"));
         assert!(t.contains("polbrdf_jobs{state=\"done\"} 5"));
+        m.leases_expired.fetch_add(2, Ordering::Relaxed);
+        let t = m.render(&Gauges {
+            instance: "node-\"7\"".into(),
+            db_connections_in_use: 1,
+            db_connections_idle: 3,
+            ..Default::default()
+        });
+        assert!(
+            t.contains("polbrdf_leases_expired_total{instance=\"node-\\\"7\\\"\"} 2"),
+            "{t}"
+        );
+        assert!(t.contains("polbrdf_jobs_reclaimed_total{instance=\"node-\\\"7\\\"\"} 0"));
+        assert!(
+            t.contains("polbrdf_db_pool_connections{instance=\"node-\\\"7\\\"\",state=\"idle\"} 3")
+        );
     }
 }

@@ -1,38 +1,49 @@
-//! The job queue of the service: one job per spec id, solved once.
+//! The job queue of the service: one job per spec id, solved once by one
+//! instance of however many share the index.
 //!
-//! * **Rows are jobs.** A job is its row in the index ([`crate::storage`]):
-//!   `queued → running → done | failed`. Progress (wavelengths done, wall
+//! * **Rows are jobs** ([`crate::storage::index::queue`]). A job is its row in
+//!   the index: `queued → running → done | failed`. Workers of every
+//!   instance on the database *claim* queued rows (the oldest first) with a
+//!   lease that they renew while they solve; a lease that lapses (its
+//!   instance died) is released by any instance and the row claimed again,
+//!   and a row claimed more than `--max-attempts` times without finishing
+//!   is marked failed (`job-abandoned`). Progress (wavelengths done, wall
 //!   time per wavelength) is written to the row as the solve advances. At
-//!   start, queued and running rows are queued again ([`Jobs::start`]), so a
-//!   crash or restart loses no accepted job; a row that has been started
-//!   `max_attempts` times without finishing (it crashed the process each
-//!   time) is marked failed instead.
-//! * **Solves never block the async runtime.** Each job is spawned on a
+//!   start, the running rows an earlier run of this instance left are
+//!   queued again, so a crash or restart loses no accepted job.
+//! * **Serve-only instances** (`--workers 0`) accept and serve; the
+//!   instances with workers solve. Workers wake on a local enqueue, on a
+//!   `NOTIFY` from another instance (PostgreSQL), and poll every
+//!   [`worker::POLL`] in case a notification was lost.
+//! * **Solves never block the async runtime.** Each claimed job runs on a
 //!   dedicated rayon pool (`--workers` threads; the solver's own parallel
 //!   level, Fourier orders, runs inside that pool) and reports back through
 //!   a tokio channel (progress) and a oneshot (outcome); an async task per
-//!   job writes the row. The blob is written on the rayon thread.
-//! * **Identical submissions join.** Concurrent POSTs of the same id share
-//!   one decision (a per-id single-flight cell): the first looks the id up
-//!   and enqueues it if needed, the others wait for that decision and join
-//!   the same job. A job stays joinable until its row is final.
+//!   job writes the row and renews the lease. The blob is written on the
+//!   rayon thread, before the row says done.
+//! * **Identical submissions join.** Concurrent POSTs of the same id in one
+//!   process share one decision (a per-id single-flight cell); a POST that
+//!   finds the row queued or running joins it, and the enqueue itself is an
+//!   upsert on the id, so instances deciding at once make one row.
 //! * **Per-wavelength results.** A request for several wavelengths is made
 //!   of one-wavelength requests (`plan::wavelength_parts`), each stored as a
 //!   result of its own under its id. A job reads the parts that are cached
-//!   and solves only the others ([`result::solve_parts`]); a request whose
-//!   parts are all cached is assembled at submission, with no solve, and
-//!   answered as a cache hit naming them (`covered_by`).
+//!   when it is claimed and solves only the others ([`result::solve_parts`]);
+//!   a request whose parts are all cached is assembled at submission, with
+//!   no solve, and answered as a cache hit naming them (`covered_by`).
 //!   `polbrdf_solves_started_total` counts per-wavelength solves.
-//! * **Bounded.** At most `--max-queue` jobs wait for a worker; beyond that
-//!   submissions are refused ([`JobError::QueueFull`], HTTP 503).
-//! * **Graceful shutdown** ([`Jobs::shutdown`]): jobs not yet started stay
-//!   queued in the index; running jobs get a grace period to finish, and are
-//!   re-queued in the index if they do not.
+//! * **Bounded.** At most `--max-queue` rows wait for a worker (over all
+//!   instances); beyond that submissions are refused
+//!   ([`JobError::QueueFull`], HTTP 503).
+//! * **Graceful shutdown** ([`Jobs::shutdown`]): no new claims; running jobs
+//!   get a grace period to finish, and are released to the queue if they
+//!   do not.
 
 pub mod failure;
 pub mod metrics;
 mod parts;
 pub mod result;
+mod worker;
 
 pub use failure::{FailureRecord, JobFailure};
 pub use metrics::{Gauges, Metrics};
@@ -40,27 +51,46 @@ pub use metrics::{Gauges, Metrics};
 use crate::material::{self, Spec};
 use crate::plan;
 use crate::storage::{BlobStore, Index, JobRow, Status, StorageError, now_ms};
-use parts::{CachedPart, StoredPart, store_part};
-use result::{PartInput, SolveFailure};
-use std::collections::HashMap;
-use std::panic::{AssertUnwindSafe, catch_unwind};
-use std::sync::atomic::{AtomicBool, AtomicU8, AtomicUsize, Ordering};
+use parts::CachedPart;
+use std::collections::{HashMap, HashSet};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
-use std::time::{Duration, Instant};
-use tokio::sync::{OnceCell, mpsc, oneshot, watch};
-use tracing::Instrument;
+use std::time::Duration;
+use tokio::sync::{Notify, OnceCell, Semaphore, watch};
 
 /// Settings of the queue.
 #[derive(Clone, Debug)]
 pub struct JobsConfig {
-    /// Solver threads.
+    /// Solver threads (`0`: serve only, solve nothing).
     pub workers: usize,
-    /// Jobs allowed to wait for a worker.
+    /// Jobs allowed to wait for a worker (over all instances).
     pub max_queue: usize,
-    /// Starts of one job before it is given up (crash-loop guard).
+    /// Claims of one job before it is given up (crash-loop guard).
     pub max_attempts: i64,
     /// Most streams a `solver.tolerance` may pick (`--max-streams`).
     pub max_streams: usize,
+    /// This instance's id (`--instance-id`): the owner of its leases.
+    pub instance_id: String,
+    /// How long a claim holds without a renewal (`--lease-secs`).
+    pub lease: Duration,
+}
+
+impl JobsConfig {
+    /// The lease in ms (at least 1).
+    fn lease_ms(&self) -> i64 {
+        (self.lease.as_millis() as i64).max(1)
+    }
+}
+
+/// The default instance id: the host name and the process id.
+pub fn default_instance_id() -> String {
+    let host = std::fs::read_to_string("/proc/sys/kernel/hostname")
+        .ok()
+        .map(|h| h.trim().to_string())
+        .filter(|h| !h.is_empty())
+        .or_else(|| std::env::var("HOSTNAME").ok().filter(|h| !h.is_empty()))
+        .unwrap_or_else(|| "polbrdf".into());
+    format!("{host}-{}", std::process::id())
 }
 
 /// Why a submission was not accepted.
@@ -98,7 +128,7 @@ pub enum Submission {
         /// when the id itself was cached).
         covered_by: Vec<String>,
     },
-    /// The job is queued or running (started now or joined).
+    /// The job is queued or running (queued now or joined).
     Pending {
         /// Spec id.
         id: String,
@@ -112,63 +142,14 @@ pub enum Submission {
 #[derive(Clone, Debug)]
 enum Decision {
     Cached(Box<JobRow>, Vec<String>),
-    Enqueued(Vec<String>),
+    Pending(Status, Vec<String>),
 }
 
-const QUEUED: u8 = 0;
-const RUNNING: u8 = 1;
-const FINISHED: u8 = 2;
+/// The single-flight cell of one id's decision.
+type Flight = OnceCell<Result<Decision, JobError>>;
 
-/// The single-flight cell of one id.
-#[derive(Debug)]
-struct Flight {
-    decided: OnceCell<Result<Decision, JobError>>,
-    state: AtomicU8,
-}
-
-impl Flight {
-    fn new() -> Self {
-        Self {
-            decided: OnceCell::new(),
-            state: AtomicU8::new(QUEUED),
-        }
-    }
-}
-
-/// Events from a solve to its async task.
-enum Event {
-    Started,
-    /// A wavelength's solve starts (`polbrdf_solves_started_total`).
-    SolveStarted,
-    /// A per-wavelength part is solved and its blob stored: record its row
-    /// now, so that it survives a later failure or a restart.
-    PartStored(StoredPart),
-    Wavelength {
-        done: usize,
-        total: usize,
-        ms: f64,
-    },
-    /// Fraction of the whole job done (approximate, per batch of Fourier
-    /// orders).
-    Progress(f64),
-}
-
-/// Outcome of a solve.
-enum Outcome {
-    Solved {
-        digest: String,
-        size: i64,
-        media_type: &'static str,
-        wall_time_ms: Vec<f64>,
-        error_estimate: Option<f64>,
-        seconds: f64,
-    },
-    Failed(SolveFailure),
-    Internal(String),
-    Cancelled,
-}
-
-/// The queue, its workers and the in-flight jobs.
+/// The queue of this instance: its submissions, its workers and the jobs
+/// they run.
 pub struct Jobs {
     index: Index,
     blobs: Arc<BlobStore>,
@@ -176,9 +157,14 @@ pub struct Jobs {
     config: JobsConfig,
     pool: rayon::ThreadPool,
     flights: Mutex<HashMap<String, Arc<Flight>>>,
-    queued: AtomicUsize,
-    running: AtomicUsize,
+    /// Ids this instance is solving (under its lease).
+    running: Mutex<HashSet<String>>,
+    /// One permit per worker: a claim takes one, the job's end gives it back.
+    slots: Arc<Semaphore>,
+    /// Work may be waiting: a local enqueue, a notification, a release.
+    wake: Notify,
     stopping: Arc<AtomicBool>,
+    stop_tx: watch::Sender<bool>,
     active: watch::Sender<usize>,
 }
 
@@ -186,15 +172,15 @@ impl std::fmt::Debug for Jobs {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("Jobs")
             .field("config", &self.config)
-            .field("queued", &self.queued)
             .field("running", &self.running)
             .finish_non_exhaustive()
     }
 }
 
 impl Jobs {
-    /// Build the worker pool and queue again every unfinished row of the
-    /// index (crash/restart recovery).
+    /// Build the worker pool, queue again the running rows an earlier run
+    /// of this instance left, and start claiming (unless `workers` is 0)
+    /// and releasing lapsed leases.
     pub async fn start(
         index: Index,
         blobs: Arc<BlobStore>,
@@ -206,68 +192,27 @@ impl Jobs {
             .thread_name(|i| format!("polbrdf-solve-{i}"))
             .build()
             .map_err(|e| StorageError::Corrupt(format!("worker pool: {e}")))?;
+        let released = index.release_orphans(&config.instance_id, now_ms()).await?;
+        for id in &released {
+            tracing::info!(%id, "job left running by an earlier run; queued again");
+        }
+        let listener = index.queue_listener().await?;
         let jobs = Arc::new(Self {
             index,
             blobs,
             metrics,
+            slots: Arc::new(Semaphore::new(config.workers)),
             config,
             pool,
             flights: Mutex::new(HashMap::new()),
-            queued: AtomicUsize::new(0),
-            running: AtomicUsize::new(0),
+            running: Mutex::new(HashSet::new()),
+            wake: Notify::new(),
             stopping: Arc::new(AtomicBool::new(false)),
+            stop_tx: watch::channel(false).0,
             active: watch::channel(0).0,
         });
-        jobs.recover().await?;
+        jobs.clone().start_background(listener);
         Ok(jobs)
-    }
-
-    async fn recover(self: &Arc<Self>) -> Result<(), StorageError> {
-        for row in self.index.unfinished().await? {
-            let now = now_ms();
-            if row.attempts >= self.config.max_attempts {
-                tracing::error!(id = %row.id, attempts = row.attempts, "job abandoned");
-                let failure = JobFailure::Abandoned {
-                    attempts: row.attempts,
-                };
-                self.fail(&row.id, &failure, now).await?;
-                continue;
-            }
-            let spec = match material::parse(&row.spec) {
-                Ok(s) => s,
-                Err(e) => {
-                    self.fail(&row.id, &JobFailure::InvalidSpec(e), now).await?;
-                    continue;
-                }
-            };
-            self.index.requeue(&row.id, now).await?;
-            // Its wavelengths cached meanwhile (or by the run that stopped)
-            // are read, not solved again.
-            let parts = match self.part_inputs(&spec).await {
-                Ok((parts, _, _)) => parts,
-                Err(e) => {
-                    tracing::warn!(id = %row.id, error = %e, "cached wavelengths unreadable; solving all");
-                    plan::wavelength_parts(&spec)
-                        .into_iter()
-                        .map(|part| PartInput { part, cached: None })
-                        .collect()
-                }
-            };
-            let flight = Arc::new(Flight::new());
-            flight
-                .decided
-                .set(Ok(Decision::Enqueued(Vec::new())))
-                .expect("fresh cell");
-            self.flights
-                .lock()
-                .expect("flights lock")
-                .insert(row.id.clone(), flight.clone());
-            self.queued.fetch_add(1, Ordering::SeqCst);
-            tracing::info!(id = %row.id, attempts = row.attempts, "job re-queued at start");
-            let canonical = row.spec.clone();
-            self.spawn(row.id.clone(), spec, canonical, parts, flight);
-        }
-        Ok(())
     }
 
     /// The index.
@@ -285,6 +230,11 @@ impl Jobs {
         &self.metrics
     }
 
+    /// This instance's id.
+    pub fn instance_id(&self) -> &str {
+        &self.config.instance_id
+    }
+
     /// Is the queue accepting work?
     pub fn is_stopping(&self) -> bool {
         self.stopping.load(Ordering::SeqCst)
@@ -293,12 +243,17 @@ impl Jobs {
     /// Queue depth, running jobs and capacity (for /metrics).
     pub async fn gauges(&self) -> Result<Gauges, JobError> {
         let counts = self.index.counts().await?;
+        let depth = self.index.queue_depth().await?;
+        let (in_use, idle) = self.index.pool_connections();
         Ok(Gauges {
-            queue_depth: self.queued.load(Ordering::SeqCst),
+            queue_depth: depth.max(0) as usize,
             queue_capacity: self.config.max_queue,
-            running: self.running.load(Ordering::SeqCst),
-            workers: self.config.workers.max(1),
+            running: self.running.lock().expect("running lock").len(),
+            workers: self.config.workers,
             jobs_by_state: counts.into_iter().map(|(s, n)| (s.as_str(), n)).collect(),
+            instance: self.config.instance_id.clone(),
+            db_connections_in_use: in_use,
+            db_connections_idle: idle,
         })
     }
 
@@ -322,16 +277,14 @@ impl Jobs {
             .clone();
         let mut leader = false;
         let decision = flight
-            .decided
             .get_or_init(|| {
                 leader = true;
-                self.decide(spec, canonical, id, flight.clone())
+                self.decide(spec, canonical, id)
             })
             .await
             .clone();
-        if !matches!(decision, Ok(Decision::Enqueued(_))) {
-            self.forget(id, &flight);
-        }
+        // Decided: later submissions read the row.
+        self.forget(id, &flight);
         match decision? {
             Decision::Cached(row, covered_by) => {
                 if !leader {
@@ -339,39 +292,27 @@ impl Jobs {
                 }
                 Ok(Submission::Cached { row, covered_by })
             }
-            Decision::Enqueued(covered_by) => {
+            Decision::Pending(status, covered_by) => {
                 if !leader {
                     self.metrics.joined.fetch_add(1, Ordering::Relaxed);
                 }
-                let pending = |status| Submission::Pending {
+                Ok(Submission::Pending {
                     id: id.to_string(),
                     status,
-                    covered_by: covered_by.clone(),
-                };
-                match flight.state.load(Ordering::SeqCst) {
-                    QUEUED => Ok(pending(Status::Queued)),
-                    RUNNING => Ok(pending(Status::Running)),
-                    // Finished while we joined: the row is final.
-                    _ => match self.index.get(id).await? {
-                        Some(row) => Ok(Submission::Cached {
-                            row: Box::new(row),
-                            covered_by,
-                        }),
-                        None => Err(JobError::Storage(format!("row {id} vanished"))),
-                    },
-                }
+                    covered_by,
+                })
             }
         }
     }
 
-    /// The leader's look-up: a final row is a cache hit, anything else
-    /// (absent, result blob missing, retryable failure) is solved.
+    /// The leader's look-up: a final row is a cache hit, a queued or
+    /// running one is joined, anything else (absent, result blob missing,
+    /// retryable failure) is queued.
     async fn decide(
         self: &Arc<Self>,
         spec: &Spec,
         canonical: &str,
         id: &str,
-        flight: Arc<Flight>,
     ) -> Result<Decision, JobError> {
         if let Some(row) = self.index.get(id).await? {
             match row.status {
@@ -400,10 +341,14 @@ impl Jobs {
                     self.metrics.cache_hits.fetch_add(1, Ordering::Relaxed);
                     return Ok(Decision::Cached(Box::new(row), Vec::new()));
                 }
+                Status::Queued | Status::Running if row.is_current() => {
+                    self.metrics.joined.fetch_add(1, Ordering::Relaxed);
+                    return Ok(Decision::Pending(row.status, Vec::new()));
+                }
                 _ => {}
             }
         }
-        let (mut parts, walls, mut covered_by) = self.part_inputs(spec).await?;
+        let (parts, walls, covered_by) = self.part_inputs(spec).await?;
         // What is cached is assembled now: every wavelength of a request
         // (its parts), or a one-wavelength request covered by another.
         let cached: Option<Vec<CachedPart>> = if parts.is_empty() {
@@ -413,11 +358,11 @@ impl Jobs {
         } else if covered_by.len() == parts.len() {
             Some(
                 parts
-                    .iter()
+                    .into_iter()
                     .zip(&walls)
                     .zip(&covered_by)
                     .map(|((p, &wall_time_ms), cover)| CachedPart {
-                        bytes: p.cached.clone().expect("every part cached"),
+                        bytes: p.cached.expect("every part cached"),
                         wall_time_ms,
                         id: cover.clone(),
                     })
@@ -426,6 +371,7 @@ impl Jobs {
         } else {
             None
         };
+        let mut covered_by = covered_by;
         if let Some(cached) = cached {
             let from: Vec<String> = cached.iter().map(|c| c.id.clone()).collect();
             let walls: Vec<f64> = cached.iter().map(|c| c.wall_time_ms).collect();
@@ -440,43 +386,29 @@ impl Jobs {
                 // solve them again rather than fail the request.
                 Err(e) => {
                     tracing::warn!(id, error = %e, "cached results do not assemble; solving");
-                    for p in &mut parts {
-                        p.cached = None;
-                    }
                     covered_by.clear();
                 }
             }
         }
-        self.metrics.cache_misses.fetch_add(1, Ordering::Relaxed);
         let capacity = self.config.max_queue;
-        if self
-            .queued
-            .fetch_update(Ordering::SeqCst, Ordering::SeqCst, |q| {
-                (q < capacity).then_some(q + 1)
-            })
-            .is_err()
-        {
+        if self.index.queue_depth().await? >= capacity as i64 {
             self.metrics.rejected.fetch_add(1, Ordering::Relaxed);
             return Err(JobError::QueueFull { capacity });
         }
         let wavelengths = plan::wavelengths(spec).len() as i64;
-        if let Err(e) = self
+        let queued = self
             .index
             .enqueue(id, canonical, wavelengths, now_ms())
-            .await
-        {
-            self.queued.fetch_sub(1, Ordering::SeqCst);
-            return Err(e.into());
+            .await?;
+        if queued {
+            self.metrics.cache_misses.fetch_add(1, Ordering::Relaxed);
+            tracing::info!(id, wavelengths, reused = covered_by.len(), "job queued");
+            self.wake.notify_one();
+        } else {
+            // Another instance queued it meanwhile.
+            self.metrics.joined.fetch_add(1, Ordering::Relaxed);
         }
-        tracing::info!(id, wavelengths, reused = covered_by.len(), "job queued");
-        self.spawn(
-            id.to_string(),
-            spec.clone(),
-            canonical.to_string(),
-            parts,
-            flight,
-        );
-        Ok(Decision::Enqueued(covered_by))
+        Ok(Decision::Pending(Status::Queued, covered_by))
     }
 
     /// Remove the flight of `id` if it is still this one.
@@ -516,275 +448,47 @@ impl Jobs {
         Ok(bytes)
     }
 
-    fn spawn(
-        self: &Arc<Self>,
-        id: String,
-        spec: Spec,
-        canonical: String,
-        parts: Vec<PartInput>,
-        flight: Arc<Flight>,
-    ) {
-        let (done_tx, done_rx) = oneshot::channel::<Outcome>();
-        let (event_tx, event_rx) = mpsc::unbounded_channel::<Event>();
-        // A root span: a job outlives the request that queued it.
-        let span = tracing::info_span!(parent: None, "job", id = %id);
-        self.active.send_modify(|n| *n += 1);
-        let blobs = self.blobs.clone();
-        let stopping = self.stopping.clone();
-        let solve_span = span.clone();
-        let max_streams = self.config.max_streams;
-        let id_for_solve = id.clone();
-        let blobs_for_parts = self.blobs.clone();
-        self.pool.spawn(move || {
-            let _entered = solve_span.enter();
-            if stopping.load(Ordering::SeqCst) {
-                let _ = done_tx.send(Outcome::Cancelled);
-                return;
-            }
-            let _ = event_tx.send(Event::Started);
-            let t0 = Instant::now();
-            let solved = catch_unwind(AssertUnwindSafe(|| {
-                // One event per percent at most: the row is written per event.
-                let last = std::sync::Mutex::new(0.0_f64);
-                let progress_tx = event_tx.clone();
-                let on_progress = move |x: f64| {
-                    let mut last = last.lock().expect("progress lock");
-                    if x >= *last + 0.01 {
-                        *last = x;
-                        let _ = progress_tx.send(Event::Progress(x));
-                    }
-                };
-                let mut on_wavelength = |done, total, ms| {
-                    tracing::debug!(done, total, ms, "wavelength solved");
-                    let _ = event_tx.send(Event::Wavelength { done, total, ms });
-                };
-                if parts.is_empty() {
-                    let _ = event_tx.send(Event::SolveStarted);
-                    return result::solve(&spec, max_streams, &on_progress, &mut on_wavelength);
-                }
-                let solve_tx = event_tx.clone();
-                let stored_tx = event_tx.clone();
-                result::solve_parts(
-                    &canonical,
-                    &id_for_solve,
-                    parts,
-                    max_streams,
-                    result::PartSinks {
-                        on_solve_start: &mut || {
-                            let _ = solve_tx.send(Event::SolveStarted);
-                        },
-                        on_part_solved: &mut |p| match store_part(&blobs_for_parts, p) {
-                            Ok(stored) => {
-                                let _ = stored_tx.send(Event::PartStored(stored));
-                            }
-                            // The request's own result is still stored; the
-                            // part is solved again when next needed.
-                            Err(e) => tracing::error!(error = %e, "storing a wavelength's result"),
-                        },
-                        on_progress: &on_progress,
-                        on_wavelength: &mut on_wavelength,
-                    },
-                )
-            }));
-            let outcome = match solved {
-                Ok(Ok(s)) => match blobs.put(&s.bytes) {
-                    Ok(digest) => Outcome::Solved {
-                        digest,
-                        size: s.bytes.len() as i64,
-                        media_type: s.media_type,
-                        wall_time_ms: s.wall_time_ms,
-                        error_estimate: s.error_estimate,
-                        seconds: t0.elapsed().as_secs_f64(),
-                    },
-                    Err(e) => Outcome::Internal(format!("storing the result: {e}")),
-                },
-                Ok(Err(f)) => Outcome::Failed(f),
-                Err(panic) => Outcome::Internal(panic_message(panic.as_ref())),
-            };
-            let _ = done_tx.send(outcome);
-        });
-        let jobs = self.clone();
-        tokio::spawn(
-            async move {
-                jobs.follow(&id, &flight, event_rx, done_rx).await;
-                jobs.active.send_modify(|n| *n -= 1);
-            }
-            .instrument(span),
-        );
-    }
-
-    /// Write a job's events and outcome to its row.
-    async fn follow(
-        &self,
-        id: &str,
-        flight: &Arc<Flight>,
-        mut events: mpsc::UnboundedReceiver<Event>,
-        mut done: oneshot::Receiver<Outcome>,
-    ) {
-        let mut started = false;
-        let mut wall = Vec::new();
-        let mut progress = 0.0;
-        let outcome = loop {
-            tokio::select! {
-                biased;
-                Some(ev) = events.recv() => self.on_event(id, flight, ev, &mut started, &mut wall, &mut progress).await,
-                o = &mut done => break o,
-            }
-        };
-        while let Ok(ev) = events.try_recv() {
-            self.on_event(id, flight, ev, &mut started, &mut wall, &mut progress)
-                .await;
-        }
-        let now = now_ms();
-        let written = match outcome {
-            Ok(Outcome::Solved {
-                digest,
-                size,
-                media_type,
-                wall_time_ms,
-                error_estimate,
-                seconds,
-            }) => {
-                self.metrics
-                    .solves_succeeded
-                    .fetch_add(1, Ordering::Relaxed);
-                self.metrics.observe_solve(seconds);
-                tracing::info!(%digest, size, seconds, "job done");
-                self.index
-                    .finish(
-                        id,
-                        &digest,
-                        size,
-                        media_type,
-                        &wall_time_ms,
-                        error_estimate,
-                        now,
-                    )
-                    .await
-            }
-            Ok(Outcome::Failed(f)) => {
-                self.metrics.solves_failed.fetch_add(1, Ordering::Relaxed);
-                tracing::info!(detail = %f.message, "job failed");
-                self.fail(id, &JobFailure::Solve(f), now).await
-            }
-            Ok(Outcome::Cancelled) => {
-                // Shutdown before a worker took it: it stays queued.
-                self.queued.fetch_sub(1, Ordering::SeqCst);
-                self.index.requeue(id, now).await
-            }
-            Ok(Outcome::Internal(message)) => {
-                self.metrics.solves_failed.fetch_add(1, Ordering::Relaxed);
-                tracing::error!(%message, "job failed with an internal error");
-                self.fail(id, &JobFailure::Internal, now).await
-            }
-            Err(_) => {
-                self.metrics.solves_failed.fetch_add(1, Ordering::Relaxed);
-                tracing::error!("the solve ended without an outcome");
-                self.fail(id, &JobFailure::NoOutcome, now).await
-            }
-        };
-        if let Err(e) = written {
-            tracing::error!(error = %e, "could not record the job's outcome");
-        }
-        if started {
-            self.running.fetch_sub(1, Ordering::SeqCst);
-        }
-        // Final (or back in the index as queued on shutdown): new
-        // submissions read the row from now on.
-        let mut map = self.flights.lock().expect("flights lock");
-        flight.state.store(FINISHED, Ordering::SeqCst);
-        if map.get(id).is_some_and(|f| Arc::ptr_eq(f, flight)) {
-            map.remove(id);
-        }
-    }
-
-    async fn on_event(
-        &self,
-        id: &str,
-        flight: &Flight,
-        ev: Event,
-        started: &mut bool,
-        wall: &mut Vec<f64>,
-        progress: &mut f64,
-    ) {
-        let now = now_ms();
-        let r = match ev {
-            Event::Started => {
-                *started = true;
-                self.queued.fetch_sub(1, Ordering::SeqCst);
-                self.running.fetch_add(1, Ordering::SeqCst);
-                flight.state.store(RUNNING, Ordering::SeqCst);
-                tracing::info!("job running");
-                self.index.start(id, now).await
-            }
-            Event::SolveStarted => {
-                self.metrics.solves_started.fetch_add(1, Ordering::Relaxed);
-                Ok(())
-            }
-            Event::PartStored(p) => {
-                self.index
-                    .record_done(
-                        &p.id,
-                        &p.canonical_json,
-                        &p.digest,
-                        p.size,
-                        result::MEDIA_TYPE,
-                        &p.wall_time_ms,
-                        p.error_estimate,
-                        now,
-                    )
-                    .await
-            }
-            Event::Wavelength { done, total, ms } => {
-                wall.push(ms);
-                let x = done as f64 / total.max(1) as f64;
-                *progress = progress.max(x);
-                self.index.progress(id, *progress, wall, now).await
-            }
-            Event::Progress(x) if x > *progress => {
-                *progress = x.min(1.0);
-                self.index.progress(id, *progress, wall, now).await
-            }
-            Event::Progress(_) => Ok(()),
-        };
-        if let Err(e) = r {
-            tracing::error!(error = %e, "could not record job progress");
-        }
-    }
-
-    /// Mark a row failed with the record of `failure`.
+    /// Mark a row this instance holds failed with the record of `failure`.
     async fn fail(&self, id: &str, failure: &JobFailure, now: i64) -> Result<(), StorageError> {
         self.index
-            .fail(id, &FailureRecord::of(failure).to_json(), now)
+            .fail(
+                id,
+                &self.config.instance_id,
+                &FailureRecord::of(failure).to_json(),
+                now,
+            )
             .await
     }
 
-    /// Refuse new submissions and let workers skip jobs they have not
-    /// started (they stay queued in the index).
+    /// Refuse new submissions and claim nothing more.
     pub fn stop_accepting(&self) {
         self.stopping.store(true, Ordering::SeqCst);
+        self.stop_tx.send_replace(true);
     }
 
-    /// Stop taking work: jobs that have not started stay queued in the
-    /// index; running jobs get `grace` to finish and are re-queued in the
-    /// index if they do not (the next start solves them again).
+    /// Stop taking work: queued rows stay queued for any instance; running
+    /// jobs get `grace` to finish and are released to the queue if they do
+    /// not (this or another instance solves them again).
     pub async fn shutdown(&self, grace: Duration) {
         self.stop_accepting();
         let mut rx = self.active.subscribe();
         let drained = tokio::time::timeout(grace, rx.wait_for(|n| *n == 0)).await;
         if drained.is_err() {
             let running: Vec<String> = self
-                .flights
+                .running
                 .lock()
-                .expect("flights lock")
+                .expect("running lock")
                 .iter()
-                .filter(|(_, f)| f.state.load(Ordering::SeqCst) == RUNNING)
-                .map(|(id, _)| id.clone())
+                .cloned()
                 .collect();
             for id in running {
-                tracing::warn!(%id, "job still running at shutdown; re-queued");
-                if let Err(e) = self.index.requeue(&id, now_ms()).await {
-                    tracing::error!(%id, error = %e, "could not re-queue");
+                tracing::warn!(%id, "job still running at shutdown; released to the queue");
+                if let Err(e) = self
+                    .index
+                    .release(&id, &self.config.instance_id, now_ms())
+                    .await
+                {
+                    tracing::error!(%id, error = %e, "could not release");
                 }
             }
         }
@@ -795,14 +499,4 @@ impl Jobs {
 /// final (a row without a readable record is retried).
 fn is_retryable(row: &JobRow) -> bool {
     FailureRecord::of_row(row).is_none_or(|r| r.retryable())
-}
-
-fn panic_message(p: &(dyn std::any::Any + Send)) -> String {
-    if let Some(s) = p.downcast_ref::<&str>() {
-        format!("panic: {s}")
-    } else if let Some(s) = p.downcast_ref::<String>() {
-        format!("panic: {s}")
-    } else {
-        "panic".into()
-    }
 }

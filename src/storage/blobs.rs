@@ -21,16 +21,33 @@ pub struct BlobStore {
     counter: AtomicU64,
 }
 
+/// Age beyond which a temporary write is a leftover: a write takes
+/// milliseconds (one result, written and fsynced).
+pub const STALE_TEMP: std::time::Duration = std::time::Duration::from_secs(60);
+
 impl BlobStore {
     /// Open (and create) the blob directory `root`; leftovers of interrupted
-    /// writes in `root/tmp` are removed.
+    /// writes in `root/tmp` older than [`STALE_TEMP`] are removed. Younger
+    /// ones may be another instance's writes in progress (instances of one
+    /// machine may share the directory).
     pub fn open(root: impl Into<PathBuf>) -> io::Result<Self> {
         let root = root.into();
         let tmp = root.join("tmp");
-        if tmp.exists() {
-            fs::remove_dir_all(&tmp)?;
-        }
         fs::create_dir_all(&tmp)?;
+        for entry in fs::read_dir(&tmp)? {
+            let entry = entry?;
+            let stale = entry
+                .metadata()
+                .and_then(|m| m.modified())
+                .is_ok_and(|t| t.elapsed().is_ok_and(|age| age > STALE_TEMP));
+            if stale {
+                match fs::remove_file(entry.path()) {
+                    Ok(()) => {}
+                    Err(e) if e.kind() == io::ErrorKind::NotFound => {}
+                    Err(e) => return Err(e),
+                }
+            }
+        }
         Ok(Self {
             root,
             counter: AtomicU64::new(0),
@@ -143,6 +160,27 @@ mod tests {
         assert_eq!(store.get(&"0".repeat(64)).unwrap(), None);
         assert_eq!(store.get("../etc").unwrap(), None);
         assert!(fs::read_dir(dir.join("tmp")).unwrap().next().is_none());
+        fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// Opening removes leftovers of interrupted writes, not the writes
+    /// another instance sharing the directory has in progress.
+    #[test]
+    fn open_removes_only_stale_temporaries() {
+        let dir = temp_dir("stale");
+        BlobStore::open(&dir).unwrap();
+        let (old, young) = (dir.join("tmp/old.1.0"), dir.join("tmp/young.2.0"));
+        fs::write(&old, b"x").unwrap();
+        fs::write(&young, b"y").unwrap();
+        let long_ago = std::time::SystemTime::now() - STALE_TEMP * 2;
+        File::options()
+            .write(true)
+            .open(&old)
+            .unwrap()
+            .set_modified(long_ago)
+            .unwrap();
+        BlobStore::open(&dir).unwrap();
+        assert!(!old.exists() && young.exists());
         fs::remove_dir_all(&dir).unwrap();
     }
 }

@@ -249,6 +249,26 @@ pub async fn metric(c: &reqwest::Client, s: &Server, name: &str) -> f64 {
         .unwrap_or_else(|| panic!("metric {name} missing in\n{text}"))
 }
 
+/// The sum of every sample of a metric, whatever its labels (0 when it
+/// has none yet).
+pub async fn metric_sum(c: &reqwest::Client, s: &Server, name: &str) -> f64 {
+    let text = c
+        .get(s.url("/metrics"))
+        .send()
+        .await
+        .unwrap()
+        .text()
+        .await
+        .unwrap();
+    text.lines()
+        .filter(|l| {
+            l.strip_prefix(name)
+                .is_some_and(|r| r.starts_with(' ') || r.starts_with('{'))
+        })
+        .map(|l| l.rsplit(' ').next().unwrap().parse::<f64>().unwrap())
+        .sum()
+}
+
 /// Lowercase hex SHA-256, computed here independently of the service.
 pub fn sha256_hex(bytes: &[u8]) -> String {
     use sha2::Digest;

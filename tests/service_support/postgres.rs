@@ -70,6 +70,29 @@ impl PgSchema {
         .unwrap()
     }
 
+    /// The `attempts` column of a row (claims so far).
+    pub async fn attempts_of(&self, id: &str) -> Option<i64> {
+        sqlx::query_scalar(sqlx::AssertSqlSafe(format!(
+            "SELECT attempts FROM {}.jobs WHERE id = $1",
+            self.name
+        )))
+        .bind(id)
+        .fetch_optional(&self.admin)
+        .await
+        .unwrap()
+    }
+
+    /// Rows in the schema's `jobs` table.
+    pub async fn row_count(&self) -> i64 {
+        sqlx::query_scalar(sqlx::AssertSqlSafe(format!(
+            "SELECT COUNT(*) FROM {}.jobs",
+            self.name
+        )))
+        .fetch_one(&self.admin)
+        .await
+        .unwrap()
+    }
+
     /// Drop the schema and everything in it.
     pub async fn drop_schema(self) {
         sqlx::query(sqlx::AssertSqlSafe(format!(

@@ -10,9 +10,9 @@
 //! The jobs and http layers see only [`Index`]; every method means the same
 //! on both backends (the tests below run each on both). Short statements
 //! only: every state change is a single `UPDATE` (or upsert), so a crash
-//! leaves each row in a state the start-up scan understands (queued/running
-//! rows are solved again). Sharing the queue between instances (claiming
-//! rows with `FOR UPDATE SKIP LOCKED` and leases) is not done yet.
+//! leaves each row in a state any instance understands. The rows are the
+//! queue that all instances on one database share ([`queue`]: claims,
+//! leases, their expiry).
 //!
 //! Each backend writes its SQL plainly (`?N` against `$N` placeholders,
 //! each its own column types); what is the same text on both lives here.
@@ -104,6 +104,10 @@ pub struct JobRow {
     /// The schema/solver version that made the row
     /// ([`crate::plan::result_version`]).
     pub result_version: String,
+    /// The instance (`--instance-id`) holding the lease of a running row.
+    pub worker: Option<String>,
+    /// When that lease lapses unless renewed (ms since the epoch).
+    pub lease_expires_at: Option<i64>,
 }
 
 impl JobRow {
@@ -156,6 +160,9 @@ macro_rules! on_backend {
         }
     };
 }
+
+// After the macro: the queue methods dispatch with it too.
+pub mod queue;
 
 impl Index {
     /// Connect to the database `database_url` names (`sqlite:`, creating
@@ -215,41 +222,36 @@ impl Index {
         on_backend!(self, ix => ix.unfinished().await)
     }
 
-    /// Insert a queued row, or reset an existing row to queued (a result
-    /// whose blob went missing, a retried failure). Keeps `created_at` and
-    /// `attempts`.
+    /// Insert a queued row, or reset a final row (a result whose blob went
+    /// missing, a retried failure) or a row of another version to queued.
+    /// Keeps `created_at` and `attempts`. Idempotent across instances: a
+    /// queued or running row of this version is left as it is (the
+    /// submission joins it). `true` when this call queued the row.
     pub async fn enqueue(
         &self,
         id: &str,
         spec: &str,
         wavelengths: i64,
         now: i64,
-    ) -> Result<(), StorageError> {
+    ) -> Result<bool, StorageError> {
         on_backend!(self, ix => ix.enqueue(id, spec, wavelengths, now).await)
     }
 
-    /// Back to queued without touching anything else (shutdown, restart).
-    pub async fn requeue(&self, id: &str, now: i64) -> Result<(), StorageError> {
-        on_backend!(self, ix => ix.requeue(id, now).await)
-    }
-
-    /// A worker took the job.
-    pub async fn start(&self, id: &str, now: i64) -> Result<(), StorageError> {
-        on_backend!(self, ix => ix.start(id, now).await)
-    }
-
-    /// A wavelength finished.
+    /// A wavelength finished (written only while `owner` holds the lease).
     pub async fn progress(
         &self,
         id: &str,
+        owner: &str,
         progress: f64,
         wall_time_ms: &[f64],
         now: i64,
     ) -> Result<(), StorageError> {
-        on_backend!(self, ix => ix.progress(id, progress, wall_time_ms, now).await)
+        on_backend!(self, ix => ix.progress(id, owner, progress, wall_time_ms, now).await)
     }
 
-    /// The result blob is stored: the row is a cached result from now on.
+    /// The result blob is stored: the row is a cached result from now on
+    /// (whoever holds the lease: the bytes of an id are the same whoever
+    /// solved them), and its lease is cleared.
     #[allow(clippy::too_many_arguments)]
     pub async fn finish(
         &self,
@@ -298,9 +300,16 @@ impl Index {
         on_backend!(self, ix => ix.record_done(id, spec, &done, now).await)
     }
 
-    /// The solve failed with this JSON problem.
-    pub async fn fail(&self, id: &str, error_json: &str, now: i64) -> Result<(), StorageError> {
-        on_backend!(self, ix => ix.fail(id, error_json, now).await)
+    /// The solve by `owner` failed with this JSON problem. A row whose
+    /// lease another instance holds now (this one's lapsed) is left to it.
+    pub async fn fail(
+        &self,
+        id: &str,
+        owner: &str,
+        error_json: &str,
+        now: i64,
+    ) -> Result<(), StorageError> {
+        on_backend!(self, ix => ix.fail(id, owner, error_json, now).await)
     }
 
     /// Number of rows per state (all states, zeros included).
@@ -338,7 +347,8 @@ pub(crate) struct Done<'a> {
 
 /// The columns of [`JobRow`], in its order (`SELECT {COLUMNS} FROM jobs`).
 const COLUMNS: &str = "id, status, spec, wavelengths, progress, wall_time_ms, error_estimate, \
-     error, digest, size, media_type, attempts, created_at, updated_at, finished_at, result_version";
+     error, digest, size, media_type, attempts, created_at, updated_at, finished_at, result_version, \
+     lease_owner, lease_expires_at";
 
 /// Rows written before the `family` column existed (the family backfill).
 const SQL_WITHOUT_FAMILY: &str = "SELECT id, spec FROM jobs WHERE family IS NULL";
@@ -382,6 +392,8 @@ where
         updated_at: r.try_get("updated_at")?,
         finished_at: r.try_get("finished_at")?,
         result_version: r.try_get("result_version")?,
+        worker: r.try_get("lease_owner")?,
+        lease_expires_at: r.try_get("lease_expires_at")?,
     })
 }
 
@@ -421,8 +433,8 @@ mod tests {
 
     /// A scratch database (a SQLite file or a PostgreSQL schema), removed
     /// by [`Scratch::remove`].
-    struct Scratch {
-        url: String,
+    pub(super) struct Scratch {
+        pub(super) url: String,
         cleanup: Cleanup,
     }
 
@@ -448,7 +460,7 @@ mod tests {
         /// A fresh schema in the test database, and the URL whose
         /// connections use it (`search_path`); `None` when no test
         /// database is named.
-        async fn postgres(test: &str) -> Option<Scratch> {
+        pub(super) async fn postgres(test: &str) -> Option<Scratch> {
             let base = postgres_test_url(test)?;
             let admin = sqlx::PgPool::connect(&base).await.unwrap();
             let nanos = std::time::SystemTime::now()
@@ -467,7 +479,7 @@ mod tests {
             })
         }
 
-        async fn remove(self) {
+        pub(super) async fn remove(self) {
             match self.cleanup {
                 Cleanup::Dir(d) => std::fs::remove_dir_all(d).unwrap(),
                 Cleanup::Schema(admin, schema) => {
@@ -505,7 +517,7 @@ mod tests {
     }
 
     /// `check` on a fresh SQLite index, then on a fresh PostgreSQL one.
-    async fn on_both<F, Fut>(test: &str, check: F)
+    pub(super) async fn on_both<F, Fut>(test: &str, check: F)
     where
         F: Fn(String) -> Fut,
         Fut: std::future::Future<Output = ()>,
@@ -533,8 +545,9 @@ mod tests {
             (Status::Queued, 0, 10)
         );
         assert!(r.is_current());
-        ix.start(&id, 11).await.unwrap();
-        ix.progress(&id, 0.5, &[1.5], 12).await.unwrap();
+        let claimed = ix.claim("A", 11, 1000).await.unwrap().unwrap();
+        assert_eq!(claimed.id, id);
+        ix.progress(&id, "A", 0.5, &[1.5], 12).await.unwrap();
         let r = ix.get(&id).await.unwrap().unwrap();
         assert_eq!(
             (r.status, r.attempts, r.progress),
@@ -553,8 +566,8 @@ mod tests {
         );
         assert_eq!(r.wall_time_ms, vec![1.5, 2.5]);
         assert!(ix.unfinished().await.unwrap().is_empty());
-        // A done row is not re-queued by requeue (only queued/running are).
-        ix.requeue(&id, 14).await.unwrap();
+        // A done row is not released (only running rows are).
+        assert!(ix.release_expired(i64::MAX).await.unwrap().is_empty());
         assert_eq!(ix.get(&id).await.unwrap().unwrap().status, Status::Done);
         // Enqueue again resets the result but keeps created_at and attempts.
         ix.enqueue(&id, "{}", 2, 15).await.unwrap();
@@ -563,7 +576,8 @@ mod tests {
             (r.status, r.digest, r.created_at, r.attempts),
             (Status::Queued, None, 10, 1)
         );
-        ix.fail(&id, r#"{"type":"x"}"#, 16).await.unwrap();
+        ix.claim("A", 16, 1000).await.unwrap().unwrap();
+        ix.fail(&id, "A", r#"{"type":"x"}"#, 16).await.unwrap();
         let counts = ix.counts().await.unwrap();
         assert_eq!(
             counts,
@@ -682,7 +696,8 @@ mod tests {
         .fetch_one(admin)
         .await
         .unwrap();
-        assert_eq!(applied, 1);
+        let embedded = sqlx::migrate!("migrations/postgres").iter().count();
+        assert_eq!(applied, embedded as i64);
         for ix in indexes {
             ix.close().await;
         }

@@ -1,9 +1,9 @@
 //! The PostgreSQL backend of the index: the same `jobs` table and methods
 //! as [`super::sqlite`], with migrations in `migrations/postgres/` (the
 //! schema SQLite has after its own migrations, in PostgreSQL's types).
-//! Several instances may open the same database; they do not yet share the
-//! queue (each re-queues every unfinished row at start: docs/service.md,
-//! "PostgreSQL").
+//! Several instances may open the same database and share its queue
+//! (claims with `FOR UPDATE SKIP LOCKED`, leases, `LISTEN`/`NOTIFY`:
+//! [`super::queue`], docs/service.md "The shared queue").
 //!
 //! Differences from the SQLite SQL, all to give the same answers: `$N`
 //! placeholders; `id` collates as `"C"` (byte order, as SQLite compares
@@ -38,8 +38,9 @@ impl PgIndex {
     /// wait, then find it applied.
     pub(super) async fn open(database_url: &str) -> Result<Self, StorageError> {
         let options = PgConnectOptions::from_str(database_url)?;
+        // One connection stays with the queue's LISTEN (`listener`).
         let pool = PgPoolOptions::new()
-            .max_connections(4)
+            .max_connections(8)
             .acquire_timeout(Duration::from_secs(10))
             .connect_with(options)
             .await?;
@@ -145,15 +146,17 @@ impl PgIndex {
         spec: &str,
         wavelengths: i64,
         now: i64,
-    ) -> Result<(), StorageError> {
-        sqlx::query(
+    ) -> Result<bool, StorageError> {
+        let r = sqlx::query(
             "INSERT INTO jobs (id, status, spec, wavelengths, created_at, updated_at, result_version,
                family)
              VALUES ($1, 'queued', $2, $3, $4, $4, $5, $6)
              ON CONFLICT (id) DO UPDATE SET
                status = 'queued', progress = 0, wall_time_ms = '[]', error_estimate = NULL,
                error = NULL, digest = NULL, size = NULL, media_type = NULL,
-               updated_at = $4, finished_at = NULL, result_version = $5, family = $6",
+               updated_at = $4, finished_at = NULL, result_version = $5, family = $6,
+               lease_owner = NULL, lease_expires_at = NULL
+             WHERE jobs.status IN ('done', 'failed') OR jobs.result_version != $5",
         )
         .bind(id)
         .bind(spec)
@@ -163,49 +166,30 @@ impl PgIndex {
         .bind(family_of_canonical(spec))
         .execute(&self.pool)
         .await?;
-        Ok(())
-    }
-
-    pub(super) async fn requeue(&self, id: &str, now: i64) -> Result<(), StorageError> {
-        sqlx::query(
-            "UPDATE jobs SET status = 'queued', updated_at = $2
-             WHERE id = $1 AND status IN ('queued', 'running')",
-        )
-        .bind(id)
-        .bind(now)
-        .execute(&self.pool)
-        .await?;
-        Ok(())
-    }
-
-    pub(super) async fn start(&self, id: &str, now: i64) -> Result<(), StorageError> {
-        sqlx::query(
-            "UPDATE jobs SET status = 'running', attempts = attempts + 1, progress = 0,
-               wall_time_ms = '[]', updated_at = $2
-             WHERE id = $1",
-        )
-        .bind(id)
-        .bind(now)
-        .execute(&self.pool)
-        .await?;
-        Ok(())
+        let queued = r.rows_affected() == 1;
+        if queued {
+            self.notify().await?;
+        }
+        Ok(queued)
     }
 
     pub(super) async fn progress(
         &self,
         id: &str,
+        owner: &str,
         progress: f64,
         wall_time_ms: &[f64],
         now: i64,
     ) -> Result<(), StorageError> {
         sqlx::query(
             "UPDATE jobs SET progress = $2, wall_time_ms = $3, updated_at = $4
-             WHERE id = $1 AND status = 'running'",
+             WHERE id = $1 AND status = 'running' AND lease_owner = $5",
         )
         .bind(id)
         .bind(progress)
         .bind(json_array(wall_time_ms))
         .bind(now)
+        .bind(owner)
         .execute(&self.pool)
         .await?;
         Ok(())
@@ -220,7 +204,7 @@ impl PgIndex {
         sqlx::query(
             "UPDATE jobs SET status = 'done', progress = 1, digest = $2, size = $3,
                media_type = $4, wall_time_ms = $5, error_estimate = $6, error = NULL,
-               updated_at = $7, finished_at = $7
+               updated_at = $7, finished_at = $7, lease_owner = NULL, lease_expires_at = NULL
              WHERE id = $1",
         )
         .bind(id)
@@ -250,7 +234,8 @@ impl PgIndex {
              ON CONFLICT (id) DO UPDATE SET
                status = 'done', progress = 1, digest = $4, size = $5, media_type = $6,
                wall_time_ms = $7, error_estimate = $8, error = NULL, updated_at = $9,
-               finished_at = $9, result_version = $10, family = $11
+               finished_at = $9, result_version = $10, family = $11,
+               lease_owner = NULL, lease_expires_at = NULL
              WHERE jobs.status != 'done' OR jobs.result_version != $10",
         )
         .bind(id)
@@ -272,17 +257,20 @@ impl PgIndex {
     pub(super) async fn fail(
         &self,
         id: &str,
+        owner: &str,
         error_json: &str,
         now: i64,
     ) -> Result<(), StorageError> {
         sqlx::query(
             "UPDATE jobs SET status = 'failed', error = $2, digest = NULL, size = NULL,
-               media_type = NULL, updated_at = $3, finished_at = $3
-             WHERE id = $1",
+               media_type = NULL, updated_at = $3, finished_at = $3, lease_owner = NULL,
+               lease_expires_at = NULL
+             WHERE id = $1 AND status = 'running' AND lease_owner = $4",
         )
         .bind(id)
         .bind(error_json)
         .bind(now)
+        .bind(owner)
         .execute(&self.pool)
         .await?;
         Ok(())
@@ -291,5 +279,156 @@ impl PgIndex {
     pub(super) async fn counts(&self) -> Result<Vec<(Status, i64)>, StorageError> {
         let rows = sqlx::query(SQL_COUNTS).fetch_all(&self.pool).await?;
         decode_counts(&rows)
+    }
+}
+
+/// The channel on which an enqueue (or a released lease) wakes idle
+/// workers of every instance (`LISTEN`/`NOTIFY`).
+pub const QUEUE_CHANNEL: &str = "polbrdf_queue";
+
+/// The queue of [`super::queue`], shared by every instance on the
+/// database: a claim locks the oldest queued row it can, skipping rows
+/// other instances are claiming (`FOR UPDATE SKIP LOCKED`), in one
+/// statement.
+impl PgIndex {
+    pub(super) async fn claim(
+        &self,
+        owner: &str,
+        now: i64,
+        lease_ms: i64,
+    ) -> Result<Option<JobRow>, StorageError> {
+        let sql = format!(
+            "UPDATE jobs SET status = 'running', attempts = attempts + 1, progress = 0,
+               wall_time_ms = '[]', lease_owner = $1, lease_expires_at = $2 + $3, updated_at = $2
+             WHERE id = (SELECT id FROM jobs WHERE status = 'queued' AND result_version = $4
+                         ORDER BY created_at, id LIMIT 1 FOR UPDATE SKIP LOCKED)
+             RETURNING {COLUMNS}"
+        );
+        let row = sqlx::query(sqlx::AssertSqlSafe(sql))
+            .bind(owner)
+            .bind(now)
+            .bind(lease_ms)
+            .bind(result_version())
+            .fetch_optional(&self.pool)
+            .await?;
+        row.map(|r| decode_row(&r)).transpose()
+    }
+
+    pub(super) async fn renew(
+        &self,
+        id: &str,
+        owner: &str,
+        expires_at: i64,
+    ) -> Result<bool, StorageError> {
+        let r = sqlx::query(
+            "UPDATE jobs SET lease_expires_at = $3
+             WHERE id = $1 AND status = 'running' AND lease_owner = $2",
+        )
+        .bind(id)
+        .bind(owner)
+        .bind(expires_at)
+        .execute(&self.pool)
+        .await?;
+        Ok(r.rows_affected() == 1)
+    }
+
+    pub(super) async fn release(
+        &self,
+        id: &str,
+        owner: &str,
+        now: i64,
+    ) -> Result<(), StorageError> {
+        let r = sqlx::query(
+            "UPDATE jobs SET status = 'queued', lease_owner = NULL, lease_expires_at = NULL,
+               updated_at = $3
+             WHERE id = $1 AND status = 'running' AND lease_owner = $2",
+        )
+        .bind(id)
+        .bind(owner)
+        .bind(now)
+        .execute(&self.pool)
+        .await?;
+        if r.rows_affected() > 0 {
+            self.notify().await?;
+        }
+        Ok(())
+    }
+
+    /// Concurrent calls on several instances release each row once: the
+    /// second `UPDATE` re-reads the row after the first commits, and it is
+    /// no longer running.
+    pub(super) async fn release_expired(&self, now: i64) -> Result<Vec<String>, StorageError> {
+        let rows = sqlx::query(
+            "UPDATE jobs SET status = 'queued', lease_owner = NULL, lease_expires_at = NULL,
+               updated_at = $1
+             WHERE status = 'running' AND (lease_expires_at IS NULL OR lease_expires_at < $1)
+             RETURNING id",
+        )
+        .bind(now)
+        .fetch_all(&self.pool)
+        .await?;
+        if !rows.is_empty() {
+            self.notify().await?;
+        }
+        rows.iter()
+            .map(|r| r.try_get("id").map_err(Into::into))
+            .collect()
+    }
+
+    /// Shared by instances: only rows this instance id held are its own
+    /// orphans (a restart with the same `--instance-id`); the others'
+    /// leases expire in their own time.
+    pub(super) async fn release_orphans(
+        &self,
+        owner: &str,
+        now: i64,
+    ) -> Result<Vec<String>, StorageError> {
+        let rows = sqlx::query(
+            "UPDATE jobs SET status = 'queued', lease_owner = NULL, lease_expires_at = NULL,
+               updated_at = $2
+             WHERE status = 'running' AND lease_owner = $1
+             RETURNING id",
+        )
+        .bind(owner)
+        .bind(now)
+        .fetch_all(&self.pool)
+        .await?;
+        if !rows.is_empty() {
+            self.notify().await?;
+        }
+        rows.iter()
+            .map(|r| r.try_get("id").map_err(Into::into))
+            .collect()
+    }
+
+    pub(super) async fn queue_depth(&self) -> Result<i64, StorageError> {
+        let n: i64 = sqlx::query_scalar(
+            "SELECT COUNT(*) FROM jobs WHERE status = 'queued' AND result_version = $1",
+        )
+        .bind(result_version())
+        .fetch_one(&self.pool)
+        .await?;
+        Ok(n)
+    }
+
+    pub(super) fn pool_connections(&self) -> (u32, u32) {
+        let idle = self.pool.num_idle() as u32;
+        (self.pool.size().saturating_sub(idle), idle)
+    }
+
+    /// Wake the idle workers of every instance.
+    pub(super) async fn notify(&self) -> Result<(), StorageError> {
+        sqlx::query("SELECT pg_notify($1, '')")
+            .bind(QUEUE_CHANNEL)
+            .execute(&self.pool)
+            .await?;
+        Ok(())
+    }
+
+    /// A connection of its own that `LISTEN`s on [`QUEUE_CHANNEL`].
+    pub(super) async fn listener(&self) -> Result<sqlx::postgres::PgListener, StorageError> {
+        let mut l = sqlx::postgres::PgListener::connect_with(&self.pool).await?;
+        l.listen(QUEUE_CHANNEL).await?;
+        Ok(l)
     }
 }

@@ -135,15 +135,17 @@ impl SqliteIndex {
         spec: &str,
         wavelengths: i64,
         now: i64,
-    ) -> Result<(), StorageError> {
-        sqlx::query(
+    ) -> Result<bool, StorageError> {
+        let r = sqlx::query(
             "INSERT INTO jobs (id, status, spec, wavelengths, created_at, updated_at, result_version,
                family)
              VALUES (?1, 'queued', ?2, ?3, ?4, ?4, ?5, ?6)
              ON CONFLICT (id) DO UPDATE SET
                status = 'queued', progress = 0, wall_time_ms = '[]', error_estimate = NULL,
                error = NULL, digest = NULL, size = NULL, media_type = NULL,
-               updated_at = ?4, finished_at = NULL, result_version = ?5, family = ?6",
+               updated_at = ?4, finished_at = NULL, result_version = ?5, family = ?6,
+               lease_owner = NULL, lease_expires_at = NULL
+             WHERE jobs.status IN ('done', 'failed') OR jobs.result_version != ?5",
         )
         .bind(id)
         .bind(spec)
@@ -153,49 +155,26 @@ impl SqliteIndex {
         .bind(family_of_canonical(spec))
         .execute(&self.pool)
         .await?;
-        Ok(())
-    }
-
-    pub(super) async fn requeue(&self, id: &str, now: i64) -> Result<(), StorageError> {
-        sqlx::query(
-            "UPDATE jobs SET status = 'queued', updated_at = ?2
-             WHERE id = ?1 AND status IN ('queued', 'running')",
-        )
-        .bind(id)
-        .bind(now)
-        .execute(&self.pool)
-        .await?;
-        Ok(())
-    }
-
-    pub(super) async fn start(&self, id: &str, now: i64) -> Result<(), StorageError> {
-        sqlx::query(
-            "UPDATE jobs SET status = 'running', attempts = attempts + 1, progress = 0,
-               wall_time_ms = '[]', updated_at = ?2
-             WHERE id = ?1",
-        )
-        .bind(id)
-        .bind(now)
-        .execute(&self.pool)
-        .await?;
-        Ok(())
+        Ok(r.rows_affected() == 1)
     }
 
     pub(super) async fn progress(
         &self,
         id: &str,
+        owner: &str,
         progress: f64,
         wall_time_ms: &[f64],
         now: i64,
     ) -> Result<(), StorageError> {
         sqlx::query(
             "UPDATE jobs SET progress = ?2, wall_time_ms = ?3, updated_at = ?4
-             WHERE id = ?1 AND status = 'running'",
+             WHERE id = ?1 AND status = 'running' AND lease_owner = ?5",
         )
         .bind(id)
         .bind(progress)
         .bind(json_array(wall_time_ms))
         .bind(now)
+        .bind(owner)
         .execute(&self.pool)
         .await?;
         Ok(())
@@ -210,7 +189,7 @@ impl SqliteIndex {
         sqlx::query(
             "UPDATE jobs SET status = 'done', progress = 1, digest = ?2, size = ?3,
                media_type = ?4, wall_time_ms = ?5, error_estimate = ?6, error = NULL,
-               updated_at = ?7, finished_at = ?7
+               updated_at = ?7, finished_at = ?7, lease_owner = NULL, lease_expires_at = NULL
              WHERE id = ?1",
         )
         .bind(id)
@@ -240,7 +219,8 @@ impl SqliteIndex {
              ON CONFLICT (id) DO UPDATE SET
                status = 'done', progress = 1, digest = ?4, size = ?5, media_type = ?6,
                wall_time_ms = ?7, error_estimate = ?8, error = NULL, updated_at = ?9,
-               finished_at = ?9, result_version = ?10, family = ?11
+               finished_at = ?9, result_version = ?10, family = ?11,
+               lease_owner = NULL, lease_expires_at = NULL
              WHERE jobs.status != 'done' OR jobs.result_version != ?10",
         )
         .bind(id)
@@ -262,17 +242,20 @@ impl SqliteIndex {
     pub(super) async fn fail(
         &self,
         id: &str,
+        owner: &str,
         error_json: &str,
         now: i64,
     ) -> Result<(), StorageError> {
         sqlx::query(
             "UPDATE jobs SET status = 'failed', error = ?2, digest = NULL, size = NULL,
-               media_type = NULL, updated_at = ?3, finished_at = ?3
-             WHERE id = ?1",
+               media_type = NULL, updated_at = ?3, finished_at = ?3, lease_owner = NULL,
+               lease_expires_at = NULL
+             WHERE id = ?1 AND status = 'running' AND lease_owner = ?4",
         )
         .bind(id)
         .bind(error_json)
         .bind(now)
+        .bind(owner)
         .execute(&self.pool)
         .await?;
         Ok(())
@@ -281,5 +264,121 @@ impl SqliteIndex {
     pub(super) async fn counts(&self) -> Result<Vec<(Status, i64)>, StorageError> {
         let rows = sqlx::query(SQL_COUNTS).fetch_all(&self.pool).await?;
         decode_counts(&rows)
+    }
+}
+
+/// The queue of [`super::queue`]: one process's file, so a claim is a
+/// single `UPDATE … WHERE id = (SELECT …) RETURNING`, atomic under SQLite's
+/// one writer.
+impl SqliteIndex {
+    pub(super) async fn claim(
+        &self,
+        owner: &str,
+        now: i64,
+        lease_ms: i64,
+    ) -> Result<Option<JobRow>, StorageError> {
+        let sql = format!(
+            "UPDATE jobs SET status = 'running', attempts = attempts + 1, progress = 0,
+               wall_time_ms = '[]', lease_owner = ?1, lease_expires_at = ?2 + ?3, updated_at = ?2
+             WHERE id = (SELECT id FROM jobs WHERE status = 'queued' AND result_version = ?4
+                         ORDER BY created_at, id LIMIT 1)
+             RETURNING {COLUMNS}"
+        );
+        let row = sqlx::query(sqlx::AssertSqlSafe(sql))
+            .bind(owner)
+            .bind(now)
+            .bind(lease_ms)
+            .bind(result_version())
+            .fetch_optional(&self.pool)
+            .await?;
+        row.map(|r| decode_row(&r)).transpose()
+    }
+
+    pub(super) async fn renew(
+        &self,
+        id: &str,
+        owner: &str,
+        expires_at: i64,
+    ) -> Result<bool, StorageError> {
+        let r = sqlx::query(
+            "UPDATE jobs SET lease_expires_at = ?3
+             WHERE id = ?1 AND status = 'running' AND lease_owner = ?2",
+        )
+        .bind(id)
+        .bind(owner)
+        .bind(expires_at)
+        .execute(&self.pool)
+        .await?;
+        Ok(r.rows_affected() == 1)
+    }
+
+    pub(super) async fn release(
+        &self,
+        id: &str,
+        owner: &str,
+        now: i64,
+    ) -> Result<(), StorageError> {
+        sqlx::query(
+            "UPDATE jobs SET status = 'queued', lease_owner = NULL, lease_expires_at = NULL,
+               updated_at = ?3
+             WHERE id = ?1 AND status = 'running' AND lease_owner = ?2",
+        )
+        .bind(id)
+        .bind(owner)
+        .bind(now)
+        .execute(&self.pool)
+        .await?;
+        Ok(())
+    }
+
+    pub(super) async fn release_expired(&self, now: i64) -> Result<Vec<String>, StorageError> {
+        let rows = sqlx::query(
+            "UPDATE jobs SET status = 'queued', lease_owner = NULL, lease_expires_at = NULL,
+               updated_at = ?1
+             WHERE status = 'running' AND (lease_expires_at IS NULL OR lease_expires_at < ?1)
+             RETURNING id",
+        )
+        .bind(now)
+        .fetch_all(&self.pool)
+        .await?;
+        rows.iter()
+            .map(|r| r.try_get("id").map_err(Into::into))
+            .collect()
+    }
+
+    /// One instance's file: every running row was left by an earlier run
+    /// of this service, whatever its instance id was.
+    pub(super) async fn release_orphans(
+        &self,
+        _owner: &str,
+        now: i64,
+    ) -> Result<Vec<String>, StorageError> {
+        let rows = sqlx::query(
+            "UPDATE jobs SET status = 'queued', lease_owner = NULL, lease_expires_at = NULL,
+               updated_at = ?1
+             WHERE status = 'running'
+             RETURNING id",
+        )
+        .bind(now)
+        .fetch_all(&self.pool)
+        .await?;
+        rows.iter()
+            .map(|r| r.try_get("id").map_err(Into::into))
+            .collect()
+    }
+
+    pub(super) async fn queue_depth(&self) -> Result<i64, StorageError> {
+        let n: i64 = sqlx::query_scalar(
+            "SELECT COUNT(*) FROM jobs WHERE status = 'queued' AND result_version = ?1",
+        )
+        .bind(result_version())
+        .fetch_one(&self.pool)
+        .await?;
+        Ok(n)
+    }
+
+    pub(super) fn pool_connections(&self) -> (u32, u32) {
+        let idle = self.pool.num_idle() as u32;
+        (self.pool.size().saturating_sub(idle), idle)
     }
 }

@@ -76,6 +76,9 @@ pub struct ServeArgs {
     /// This instance's id, the owner of its job leases, in logs and metrics [env POLBRDF_INSTANCE_ID; default HOSTNAME-PID].
     #[arg(long)]
     pub instance_id: Option<String>,
+    /// Where result blobs live: file:///PATH or s3://BUCKET/PREFIX, configured by AWS_ENDPOINT_URL, AWS_REGION, AWS_ACCESS_KEY_ID, AWS_SECRET_ACCESS_KEY, AWS_ALLOW_HTTP [env POLBRDF_BLOB_STORE; default file://DATA_DIR/blobs].
+    #[arg(long)]
+    pub blob_store: Option<String>,
     /// Seconds a running job's lease holds without renewal; a job whose instance died is solved elsewhere after it [env POLBRDF_LEASE_SECS; default 30].
     #[arg(long)]
     pub lease_secs: Option<u64>,
@@ -218,8 +221,32 @@ pub fn config_from(
         }
         c.lease = Duration::from_secs(l);
     }
+    if let Some(b) = pick(args.blob_store.clone(), "blob-store", env)? {
+        c.blob_store =
+            crate::storage::BlobLocation::parse(&b).map_err(|e| format!("--blob-store {e}"))?;
+    }
+    if matches!(c.blob_store, crate::storage::BlobLocation::S3 { .. }) {
+        c.s3_options = http::config::S3Options(
+            S3_ENV
+                .iter()
+                .filter_map(|k| env(k).filter(|v| !v.is_empty()).map(|v| (k.to_string(), v)))
+                .collect(),
+        );
+    }
     Ok(c)
 }
+
+/// The standard AWS variables an S3 blob store reads (`object_store`'s
+/// names for them).
+const S3_ENV: [&str; 7] = [
+    "AWS_ENDPOINT_URL",
+    "AWS_REGION",
+    "AWS_DEFAULT_REGION",
+    "AWS_ACCESS_KEY_ID",
+    "AWS_SECRET_ACCESS_KEY",
+    "AWS_SESSION_TOKEN",
+    "AWS_ALLOW_HTTP",
+];
 
 fn init_logging(c: &Config) -> Result<(), String> {
     let filter = tracing_subscriber::EnvFilter::try_new(&c.log_filter)
@@ -343,6 +370,39 @@ mod tests {
         );
         let d = config_from(&ServeArgs::default(), &|_| None).unwrap();
         assert_eq!(d, Config::default());
+        assert_eq!(
+            d.blob_store,
+            crate::storage::BlobLocation::File(PathBuf::from("./polbrdf-data/blobs"))
+        );
+    }
+
+    #[test]
+    fn an_s3_blob_store_takes_the_aws_environment_and_hides_secrets() {
+        let env = |k: &str| match k {
+            "POLBRDF_BLOB_STORE" => Some("s3://polbrdf/farm".to_string()),
+            "AWS_ENDPOINT_URL" => Some("http://127.0.0.1:9000".to_string()),
+            "AWS_SECRET_ACCESS_KEY" => Some("hunter2".to_string()),
+            "AWS_ALLOW_HTTP" => Some("true".to_string()),
+            _ => None,
+        };
+        let c = config_from(&ServeArgs::default(), &env).unwrap();
+        assert_eq!(
+            c.blob_store,
+            crate::storage::BlobLocation::S3 {
+                bucket: "polbrdf".into(),
+                prefix: "farm".into()
+            }
+        );
+        let names: Vec<&str> = c.s3_options.0.iter().map(|(k, _)| k.as_str()).collect();
+        assert_eq!(
+            names,
+            [
+                "AWS_ENDPOINT_URL",
+                "AWS_SECRET_ACCESS_KEY",
+                "AWS_ALLOW_HTTP"
+            ]
+        );
+        assert!(!format!("{c:?}").contains("hunter2"));
     }
 
     #[test]
@@ -395,6 +455,11 @@ mod tests {
             ..Default::default()
         };
         assert!(config_from(&args, &|_| None).is_err());
+        let e = config_from(&ServeArgs::default(), &|k| {
+            (k == "POLBRDF_BLOB_STORE").then(|| "gs://bucket".into())
+        })
+        .unwrap_err();
+        assert!(e.contains("--blob-store gs://bucket"), "{e}");
         for (var, value) in [("POLBRDF_LEASE_SECS", "0"), ("POLBRDF_INSTANCE_ID", "a b")] {
             let e = config_from(&ServeArgs::default(), &|k| (k == var).then(|| value.into()))
                 .unwrap_err();

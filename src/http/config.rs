@@ -2,6 +2,7 @@
 //! from flags and `POLBRDF_*` environment variables (`polbrdf serve`,
 //! src/cli/serve.rs); nothing else reads the environment.
 
+use crate::storage::BlobLocation;
 use std::net::SocketAddr;
 use std::path::PathBuf;
 use std::time::Duration;
@@ -21,8 +22,8 @@ pub struct Config {
     /// Address to listen on (port 0: any free port; the bound address is
     /// printed on stdout).
     pub listen: SocketAddr,
-    /// Data directory: the SQLite index (by default) and `blobs/` (also
-    /// with a PostgreSQL index).
+    /// Data directory: the SQLite index and the blob directory `blobs/` (by
+    /// default).
     pub data_dir: PathBuf,
     /// sqlx URL of the index: `sqlite:…` or `postgres://…` / `postgresql://…`
     /// (`storage::Backend::of_url`).
@@ -53,6 +54,23 @@ pub struct Config {
     pub instance_id: String,
     /// How long a claimed job's lease holds without a renewal.
     pub lease: Duration,
+    /// Where result blobs live (`--blob-store`; default `<data-dir>/blobs`).
+    pub blob_store: BlobLocation,
+    /// The `AWS_*` settings of an S3 blob store, from the environment.
+    pub s3_options: S3Options,
+}
+
+/// `AWS_*` settings (name, value) of the S3 blob store. Its `Debug` shows
+/// the names only: the values hold credentials.
+#[derive(Clone, Default, PartialEq)]
+pub struct S3Options(pub Vec<(String, String)>);
+
+impl std::fmt::Debug for S3Options {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_list()
+            .entries(self.0.iter().map(|(k, _)| format!("{k}=…")))
+            .finish()
+    }
 }
 
 /// Caps on what one spec may ask for.
@@ -103,6 +121,7 @@ impl Config {
         Self {
             listen: DEFAULT_LISTEN.parse().expect("default address"),
             database_url: default_database_url(&data_dir),
+            blob_store: BlobLocation::File(data_dir.join("blobs")),
             data_dir,
             workers: std::thread::available_parallelism().map_or(1, |n| n.get()),
             max_queue: 1024,
@@ -116,6 +135,7 @@ impl Config {
             max_attempts: 3,
             instance_id: crate::jobs::default_instance_id(),
             lease: Duration::from_secs(30),
+            s3_options: S3Options::default(),
         }
     }
 }

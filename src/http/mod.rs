@@ -291,11 +291,21 @@ pub async fn serve(
 ) -> Result<(), ServeError> {
     std::fs::create_dir_all(&config.data_dir)?;
     let index = Index::open(&config.database_url).await?;
-    let blobs = Arc::new(BlobStore::open(config.data_dir.join("blobs"))?);
+    let metrics = Arc::new(Metrics::default());
+    let blobs = {
+        let (location, options) = (config.blob_store.clone(), config.s3_options.0.clone());
+        // Blocking: an S3 store is checked to be reachable.
+        let store = tokio::task::spawn_blocking(move || BlobStore::at(&location, &options))
+            .await
+            .map_err(std::io::Error::other)??;
+        let m = metrics.clone();
+        Arc::new(store.with_observer(Arc::new(move |op, d| m.observe_blob(op, d.as_secs_f64()))))
+    };
+    tracing::info!(blob_store = %blobs.url(), "blob store open");
     let jobs = Jobs::start(
         index.clone(),
         blobs,
-        Arc::new(Metrics::default()),
+        metrics,
         JobsConfig {
             workers: config.workers,
             max_queue: config.max_queue,

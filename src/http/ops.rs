@@ -2,9 +2,13 @@
 
 use super::AppState;
 use super::error::ApiError;
+use crate::storage::StorageError;
 use axum::extract::State;
 use axum::http::{HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
+
+/// How long readiness waits for the database.
+const READINESS_TIMEOUT: std::time::Duration = std::time::Duration::from_secs(2);
 
 /// Liveness: the process is serving HTTP.
 #[utoipa::path(
@@ -31,7 +35,9 @@ pub async fn readyz(State(state): State<AppState>) -> Response {
     if state.0.jobs.is_stopping() {
         return (StatusCode::SERVICE_UNAVAILABLE, "shutting down\n").into_response();
     }
-    match state.0.jobs.index().ping().await {
+    // A database that does not answer is as unready as one that refuses.
+    let ping = tokio::time::timeout(READINESS_TIMEOUT, state.0.jobs.index().ping()).await;
+    match ping.unwrap_or_else(|_| Err(StorageError::Corrupt("ping timed out".into()))) {
         Ok(()) => (StatusCode::OK, "ready\n").into_response(),
         Err(e) => {
             tracing::warn!(error = %e, "readiness check failed");

@@ -10,6 +10,10 @@ use std::sync::atomic::{AtomicU64, Ordering};
 
 /// Upper bounds (seconds) of the request-latency histogram.
 const LATENCY_BUCKETS: [f64; 10] = [0.001, 0.0025, 0.005, 0.01, 0.025, 0.05, 0.1, 0.5, 1.0, 5.0];
+/// Upper bounds (seconds) of the blob-store request histogram.
+const BLOB_BUCKETS: [f64; 11] = [
+    0.0005, 0.001, 0.0025, 0.005, 0.01, 0.025, 0.05, 0.1, 0.25, 1.0, 5.0,
+];
 /// Upper bounds (seconds) of the solve-duration histogram.
 const SOLVE_BUCKETS: [f64; 8] = [0.01, 0.1, 1.0, 10.0, 60.0, 300.0, 1800.0, 7200.0];
 
@@ -61,6 +65,7 @@ pub struct Metrics {
     requests: Mutex<BTreeMap<(String, String, u16), u64>>,
     latency: Mutex<BTreeMap<String, Histogram>>,
     solve_seconds: Mutex<Histogram>,
+    blob_seconds: Mutex<BTreeMap<&'static str, Histogram>>,
     /// POSTs answered from the index (result or final failure).
     pub cache_hits: AtomicU64,
     /// POSTs that started a solve.
@@ -128,6 +133,16 @@ impl Metrics {
             .lock()
             .expect("metrics lock")
             .observe(&SOLVE_BUCKETS, seconds);
+    }
+
+    /// Record the duration of a blob-store call (`op`: get, put, head).
+    pub fn observe_blob(&self, op: &'static str, seconds: f64) {
+        self.blob_seconds
+            .lock()
+            .expect("metrics lock")
+            .entry(op)
+            .or_default()
+            .observe(&BLOB_BUCKETS, seconds);
     }
 
     /// The exposition text.
@@ -261,6 +276,15 @@ impl Metrics {
              polbrdf_db_pool_connections{{instance=\"{instance}\",state=\"idle\"}} {}",
             g.db_connections_in_use, g.db_connections_idle
         );
+        out.push_str("# HELP polbrdf_blob_store_request_duration_seconds Blob store calls of this instance by operation.\n# TYPE polbrdf_blob_store_request_duration_seconds histogram\n");
+        for (op, h) in self.blob_seconds.lock().expect("metrics lock").iter() {
+            h.render(
+                &mut out,
+                "polbrdf_blob_store_request_duration_seconds",
+                &format!("instance=\"{instance}\",op=\"{op}\""),
+                &BLOB_BUCKETS,
+            );
+        }
         out.push_str("# HELP polbrdf_solve_seconds Wall time of finished solves.\n# TYPE polbrdf_solve_seconds histogram\n");
         self.solve_seconds.lock().expect("metrics lock").render(
             &mut out,
@@ -307,6 +331,7 @@ mod tests {
         assert!(t.contains("polbrdf_queue_depth 2"));
         assert!(t.contains("polbrdf_jobs{state=\"done\"} 5"));
         m.leases_expired.fetch_add(2, Ordering::Relaxed);
+        m.observe_blob("put", 0.003);
         let t = m.render(&Gauges {
             instance: "node-\"7\"".into(),
             db_connections_in_use: 1,
@@ -318,6 +343,9 @@ mod tests {
             "{t}"
         );
         assert!(t.contains("polbrdf_jobs_reclaimed_total{instance=\"node-\\\"7\\\"\"} 0"));
+        assert!(t.contains(
+            "polbrdf_blob_store_request_duration_seconds_bucket{instance=\"node-\\\"7\\\"\",op=\"put\",le=\"0.005\"} 1"
+        ));
         assert!(
             t.contains("polbrdf_db_pool_connections{instance=\"node-\\\"7\\\"\",state=\"idle\"} 3")
         );

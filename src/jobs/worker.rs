@@ -43,6 +43,23 @@ enum Event {
     Progress(f64),
 }
 
+/// How long the outcome of a job is written again while the database
+/// refuses it.
+const RECORD_RETRY_FOR: Duration = Duration::from_secs(120);
+
+/// What the row of a finished job becomes.
+enum Record {
+    Done {
+        digest: String,
+        size: i64,
+        media_type: &'static str,
+        wall_time_ms: Vec<f64>,
+        error_estimate: Option<f64>,
+    },
+    Failed(JobFailure),
+    Release,
+}
+
 /// Outcome of a solve.
 enum Outcome {
     Solved {
@@ -288,8 +305,8 @@ impl Jobs {
         while let Ok(ev) = events.try_recv() {
             self.on_event(id, ev, &mut wall, &mut progress).await;
         }
-        let now = now_ms();
-        let written = match outcome {
+        // The outcome to record, counted once however many writes it takes.
+        let record = match outcome {
             Ok(Outcome::Solved {
                 digest,
                 size,
@@ -303,40 +320,73 @@ impl Jobs {
                     .fetch_add(1, Ordering::Relaxed);
                 self.metrics.observe_solve(seconds);
                 tracing::info!(%digest, size, seconds, "job done");
-                self.index
-                    .finish(
-                        id,
-                        &digest,
-                        size,
-                        media_type,
-                        &wall_time_ms,
-                        error_estimate,
-                        now,
-                    )
-                    .await
+                Record::Done {
+                    digest,
+                    size,
+                    media_type,
+                    wall_time_ms,
+                    error_estimate,
+                }
             }
             Ok(Outcome::Failed(f)) => {
                 self.metrics.solves_failed.fetch_add(1, Ordering::Relaxed);
                 tracing::info!(detail = %f.message, "job failed");
-                self.fail(id, &JobFailure::Solve(f), now).await
+                Record::Failed(JobFailure::Solve(f))
             }
-            Ok(Outcome::Cancelled) => {
-                // Stopping before the solve began: back to the queue.
-                self.index.release(id, owner, now).await
-            }
+            // Stopping before the solve began: back to the queue.
+            Ok(Outcome::Cancelled) => Record::Release,
             Ok(Outcome::Internal(message)) => {
                 self.metrics.solves_failed.fetch_add(1, Ordering::Relaxed);
                 tracing::error!(%message, "job failed with an internal error");
-                self.fail(id, &JobFailure::Internal, now).await
+                Record::Failed(JobFailure::Internal)
             }
             Err(_) => {
                 self.metrics.solves_failed.fetch_add(1, Ordering::Relaxed);
                 tracing::error!("the solve ended without an outcome");
-                self.fail(id, &JobFailure::NoOutcome, now).await
+                Record::Failed(JobFailure::NoOutcome)
             }
         };
-        if let Err(e) = written {
-            tracing::error!(error = %e, "could not record the job's outcome");
+        // The database may be down (restarting): write again with backoff
+        // rather than leave the row to a lapsed lease and a second solve.
+        let mut wait = Duration::from_millis(250);
+        let give_up = Instant::now() + RECORD_RETRY_FOR;
+        loop {
+            let now = now_ms();
+            let written = match &record {
+                Record::Done {
+                    digest,
+                    size,
+                    media_type,
+                    wall_time_ms,
+                    error_estimate,
+                } => {
+                    self.index
+                        .finish(
+                            id,
+                            digest,
+                            *size,
+                            media_type,
+                            wall_time_ms,
+                            *error_estimate,
+                            now,
+                        )
+                        .await
+                }
+                Record::Failed(failure) => self.fail(id, failure, now).await,
+                Record::Release => self.index.release(id, owner, now).await,
+            };
+            match written {
+                Ok(()) => return,
+                Err(e) if Instant::now() + wait < give_up && !self.is_stopping() => {
+                    tracing::warn!(error = %e, retry_in_ms = wait.as_millis() as u64, "could not record the job's outcome; retrying");
+                    tokio::time::sleep(wait).await;
+                    wait = (wait * 2).min(Duration::from_secs(5));
+                }
+                Err(e) => {
+                    tracing::error!(error = %e, "could not record the job's outcome; its lease will lapse and it is solved again");
+                    return;
+                }
+            }
         }
     }
 

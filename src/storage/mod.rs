@@ -1,6 +1,6 @@
 //! The service's storage (docs/service.md, "Storage"): an index of jobs and
 //! results in SQLite or PostgreSQL ([`index`]) and a content-addressed blob
-//! directory ([`blobs`]).
+//! store, a directory or an S3-compatible bucket ([`blobs`]).
 //!
 //! ```text
 //! <data-dir>/
@@ -16,7 +16,7 @@
 pub mod blobs;
 pub mod index;
 
-pub use blobs::BlobStore;
+pub use blobs::{BlobLocation, BlobStore};
 pub use index::{Backend, Index, JobRow, Status};
 
 /// Storage errors (logged in full; clients see a generic 500).

@@ -4,6 +4,7 @@
 #![allow(dead_code)]
 
 pub mod postgres;
+pub mod proxy;
 
 use serde_json::Value;
 use std::io::{BufRead, BufReader};
@@ -267,6 +268,80 @@ pub async fn metric_sum(c: &reqwest::Client, s: &Server, name: &str) -> f64 {
         })
         .map(|l| l.rsplit(' ').next().unwrap().parse::<f64>().unwrap())
         .sum()
+}
+
+/// `POLBRDF_TEST_S3` (`s3://BUCKET/PREFIX` of a real S3-compatible
+/// server, with the `AWS_*` variables set) under a prefix of the test's
+/// own, or `None` after a loud SKIPPED line; unset under `CI=true` is a
+/// failure (.ci/run starts one).
+pub fn s3_store(test: &str) -> Option<String> {
+    match std::env::var("POLBRDF_TEST_S3") {
+        Ok(u) if !u.is_empty() => {
+            let nanos = std::time::SystemTime::now()
+                .duration_since(std::time::UNIX_EPOCH)
+                .unwrap()
+                .as_nanos();
+            Some(format!(
+                "{}/{test}-{}-{nanos}",
+                u.trim_end_matches('/'),
+                std::process::id()
+            ))
+        }
+        _ if std::env::var("CI").as_deref() == Ok("true") => {
+            panic!("{test}: CI=true but POLBRDF_TEST_S3 is unset (.ci/run starts one)")
+        }
+        _ => {
+            use std::io::Write;
+            let _ = writeln!(
+                std::io::stderr(),
+                "SKIPPED: {test}: set POLBRDF_TEST_S3=s3://BUCKET/PREFIX and AWS_ENDPOINT_URL, \
+                 AWS_REGION, AWS_ACCESS_KEY_ID, AWS_SECRET_ACCESS_KEY (AWS_ALLOW_HTTP=true) \
+                 to run it on an S3-compatible server"
+            );
+            None
+        }
+    }
+}
+
+/// The keys under `s3://BUCKET/PREFIX`, listed from the server itself
+/// (`ListObjectsV2` on `AWS_ENDPOINT_URL`, unsigned: the test server
+/// accepts it).
+pub async fn s3_keys(c: &reqwest::Client, store: &str) -> Vec<String> {
+    let rest = store.strip_prefix("s3://").unwrap();
+    let (bucket, prefix) = rest.split_once('/').unwrap();
+    let endpoint = std::env::var("AWS_ENDPOINT_URL").unwrap();
+    let xml = c
+        .get(format!(
+            "{}/{bucket}?list-type=2&prefix={prefix}/",
+            endpoint.trim_end_matches('/')
+        ))
+        .send()
+        .await
+        .unwrap()
+        .text()
+        .await
+        .unwrap();
+    assert!(
+        !xml.contains("<IsTruncated>true"),
+        "more than one page: {xml}"
+    );
+    xml.split("<Key>")
+        .skip(1)
+        .map(|k| k.split("</Key>").next().unwrap().to_string())
+        .collect()
+}
+
+/// The `host:port` of `AWS_ENDPOINT_URL`.
+pub fn aws_endpoint_addr() -> std::net::SocketAddr {
+    let url = std::env::var("AWS_ENDPOINT_URL").unwrap();
+    let hostport = url
+        .trim_start_matches("http://")
+        .trim_end_matches('/')
+        .to_string();
+    std::net::ToSocketAddrs::to_socket_addrs(&hostport)
+        .unwrap()
+        .next()
+        .unwrap()
 }
 
 /// Lowercase hex SHA-256, computed here independently of the service.

@@ -1,4 +1,4 @@
-//! Content-addressed blobs (as in bazel-remote's CAS): a blob is a file named
+//! The blob directory (`file://`, the default): a blob is a file named
 //! by the lowercase hex SHA-256 of its bytes, `blobs/ab/cdef…` (the first two
 //! digits name a fan-out directory). Writes go to `blobs/tmp/`, are fsynced
 //! and renamed into place (then the directory is fsynced), so a reader never
@@ -16,7 +16,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 
 /// A blob directory.
 #[derive(Debug)]
-pub struct BlobStore {
+pub struct FileBlobs {
     root: PathBuf,
     counter: AtomicU64,
 }
@@ -25,7 +25,7 @@ pub struct BlobStore {
 /// milliseconds (one result, written and fsynced).
 pub const STALE_TEMP: std::time::Duration = std::time::Duration::from_secs(60);
 
-impl BlobStore {
+impl FileBlobs {
     /// Open (and create) the blob directory `root`; leftovers of interrupted
     /// writes in `root/tmp` older than [`STALE_TEMP`] are removed. Younger
     /// ones may be another instance's writes in progress (instances of one
@@ -139,7 +139,7 @@ mod tests {
     #[test]
     fn put_get_and_corruption() {
         let dir = temp_dir("roundtrip");
-        let store = BlobStore::open(&dir).unwrap();
+        let store = FileBlobs::open(&dir).unwrap();
         let digest = store.put(b"hello").unwrap();
         assert_eq!(
             digest,
@@ -168,7 +168,7 @@ mod tests {
     #[test]
     fn open_removes_only_stale_temporaries() {
         let dir = temp_dir("stale");
-        BlobStore::open(&dir).unwrap();
+        FileBlobs::open(&dir).unwrap();
         let (old, young) = (dir.join("tmp/old.1.0"), dir.join("tmp/young.2.0"));
         fs::write(&old, b"x").unwrap();
         fs::write(&young, b"y").unwrap();
@@ -179,7 +179,7 @@ mod tests {
             .unwrap()
             .set_modified(long_ago)
             .unwrap();
-        BlobStore::open(&dir).unwrap();
+        FileBlobs::open(&dir).unwrap();
         assert!(!old.exists() && young.exists());
         fs::remove_dir_all(&dir).unwrap();
     }

@@ -17,7 +17,7 @@ mod service_support;
 use service_support::*;
 use std::io::Write;
 use std::net::TcpStream;
-use std::os::unix::fs::MetadataExt;
+use std::os::unix::fs::{MetadataExt, PermissionsExt};
 use std::os::unix::process::CommandExt;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
@@ -116,8 +116,14 @@ impl Nginx {
         let prefix = dir.join("nginx");
         std::fs::create_dir_all(prefix.join("tmp")).unwrap();
         // As root, the workers run as nobody (nginx chowns the cache and
-        // temporary directories to them); otherwise nginx ignores `user`.
+        // temporary directories to them, but they must be able to reach
+        // them whatever the umask); otherwise nginx ignores `user`.
         let root = std::fs::metadata(&prefix).unwrap().uid() == 0;
+        if root {
+            for d in [dir, prefix.as_path()] {
+                std::fs::set_permissions(d, std::fs::Permissions::from_mode(0o755)).unwrap();
+            }
+        }
         let group = if std::fs::read_to_string("/etc/group")
             .unwrap_or_default()
             .lines()

@@ -79,6 +79,12 @@ pub struct ServeArgs {
     /// Where result blobs live: file:///PATH or s3://BUCKET/PREFIX, configured by AWS_ENDPOINT_URL, AWS_REGION, AWS_ACCESS_KEY_ID, AWS_SECRET_ACCESS_KEY, AWS_ALLOW_HTTP [env POLBRDF_BLOB_STORE; default file://DATA_DIR/blobs].
     #[arg(long)]
     pub blob_store: Option<String>,
+    /// Bound on the bytes of stored results: the least recently served are evicted beyond it [env POLBRDF_MAX_CACHE_BYTES; default unbounded].
+    #[arg(long)]
+    pub max_cache_bytes: Option<u64>,
+    /// Seconds after its last serve (or its solve) during which a result is never evicted [env POLBRDF_EVICTION_GRACE_SECS; default 60].
+    #[arg(long)]
+    pub eviction_grace_secs: Option<u64>,
     /// Seconds a running job's lease holds without renewal; a job whose instance died is solved elsewhere after it [env POLBRDF_LEASE_SECS; default 30].
     #[arg(long)]
     pub lease_secs: Option<u64>,
@@ -220,6 +226,15 @@ pub fn config_from(
             return Err(format!("--lease-secs = {l} is outside [1, 86400]"));
         }
         c.lease = Duration::from_secs(l);
+    }
+    if let Some(m) = pick(args.max_cache_bytes, "max-cache-bytes", env)? {
+        if m == 0 {
+            return Err("--max-cache-bytes = 0: give a positive number of bytes".into());
+        }
+        c.max_cache_bytes = Some(m);
+    }
+    if let Some(g) = pick(args.eviction_grace_secs, "eviction-grace-secs", env)? {
+        c.eviction_grace = Duration::from_secs(g);
     }
     if let Some(b) = pick(args.blob_store.clone(), "blob-store", env)? {
         c.blob_store =

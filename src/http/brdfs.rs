@@ -4,6 +4,7 @@ use super::AppState;
 use super::error::ApiError;
 use super::problem::Problem;
 use super::results::{IMMUTABLE, require_done, row_of, stored_bytes, table_of};
+use crate::jobs::evict::Deleted;
 use crate::jobs::{FailureRecord, Submission};
 use crate::material::{self, ScattererSpec, Spec};
 use crate::plan;
@@ -497,6 +498,38 @@ pub async fn list_brdfs(
     Ok(res)
 }
 
+/// Delete a result (its row and its blob; docs/service.md "Cache size"):
+/// the next submission of its spec solves it again. Behind the write token.
+#[utoipa::path(
+    delete,
+    path = "/v1/brdfs/{id}",
+    tag = "brdfs",
+    params(("id" = String, Path, description = "Spec id (64 lowercase hex digits)")),
+    responses(
+        (status = 204, description = "Deleted"),
+        (status = 401, description = "Token required (--token)", body = Problem, content_type = "application/problem+json"),
+        (status = 404, description = "Unknown id", body = Problem, content_type = "application/problem+json"),
+        (status = 409, description = "The job is queued or running (`job-in-progress`)", body = Problem, content_type = "application/problem+json"),
+    ),
+    security((), ("bearer" = []))
+)]
+pub async fn delete_brdf(
+    State(state): State<AppState>,
+    Path(id): Path<String>,
+) -> Result<Response, ApiError> {
+    if !plan::is_id(&id) {
+        return Err(ApiError::NotFound(id));
+    }
+    match state.0.jobs.delete(&id).await? {
+        Deleted::Gone => Ok(StatusCode::NO_CONTENT.into_response()),
+        Deleted::NotFound => Err(ApiError::NotFound(id)),
+        Deleted::InProgress(status) => Err(ApiError::InProgress {
+            id,
+            status: status.as_str(),
+        }),
+    }
+}
+
 /// A BRDF job: state, progress, canonical spec, timings, error estimate,
 /// the typed error of a failed job, and the result digest once done.
 #[utoipa::path(
@@ -877,6 +910,7 @@ pub async fn get_table(
     let format = q.format.unwrap_or_default();
     if format != TableFormat::Binary {
         let (row, table) = table_of(&state, &id).await?;
+        state.0.jobs.served(&id);
         let key = format!(
             "{}?{format:?}&{:?}&{:?}&{:?}&{:?}",
             row.digest.as_deref().unwrap_or(""),
@@ -931,6 +965,7 @@ pub async fn get_table(
     }
     let row = row_of(&state, &id).await?;
     require_done(&row, &id)?;
+    state.0.jobs.served(&id);
     let digest = row.digest.clone().unwrap_or_default();
     if none_match(&headers, &digest) {
         let mut res = StatusCode::NOT_MODIFIED.into_response();

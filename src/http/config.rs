@@ -58,6 +58,10 @@ pub struct Config {
     pub blob_store: BlobLocation,
     /// The `AWS_*` settings of an S3 blob store, from the environment.
     pub s3_options: S3Options,
+    /// Bound on the stored results' bytes (`None`: unbounded).
+    pub max_cache_bytes: Option<u64>,
+    /// Results served or written this recently are never evicted.
+    pub eviction_grace: Duration,
 }
 
 /// `AWS_*` settings (name, value) of the S3 blob store. Its `Debug` shows
@@ -136,6 +140,8 @@ impl Config {
             instance_id: crate::jobs::default_instance_id(),
             lease: Duration::from_secs(30),
             s3_options: S3Options::default(),
+            max_cache_bytes: None,
+            eviction_grace: Duration::from_secs(60),
         }
     }
 }

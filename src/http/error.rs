@@ -97,6 +97,14 @@ pub enum ApiError {
         /// Its state.
         status: &'static str,
     },
+    /// A queued or running job cannot be deleted: 409.
+    #[error("BRDF {id} is {status}: a job in progress cannot be deleted")]
+    InProgress {
+        /// Spec id.
+        id: String,
+        /// Its state.
+        status: &'static str,
+    },
     /// The job failed: 409, with the job's error.
     #[error("BRDF {id} failed: {}", .problem.detail)]
     JobFailed {
@@ -195,6 +203,9 @@ impl ApiError {
             ),
             ApiError::NotReady { .. } => {
                 Problem::new("not-ready", "Result not ready", 409, self.to_string())
+            }
+            ApiError::InProgress { .. } => {
+                Problem::new("job-in-progress", "Job in progress", 409, self.to_string())
             }
             ApiError::JobFailed { problem, .. } => {
                 let mut p = Problem::new("job-failed", "BRDF job failed", 409, self.to_string());

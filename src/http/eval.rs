@@ -194,6 +194,7 @@ pub async fn get_eval(
         ),
     })?;
     let (_, table) = table_of(&state, &id).await?;
+    state.0.jobs.served(&id);
     let p = EvalPoint {
         theta_i_deg: q.theta_i_deg,
         phi_i_deg: q.phi_i_deg,
@@ -245,6 +246,7 @@ pub async fn post_eval(
         });
     }
     let (_, table) = table_of(&state, &id).await?;
+    state.0.jobs.served(&id);
     let wl = req.wavelength_nm;
     let t = table.clone();
     let points = tokio::task::spawn_blocking(move || {

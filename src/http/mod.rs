@@ -102,7 +102,7 @@ impl utoipa::Modify for BearerAuth {
 pub fn routes() -> OpenApiRouter<AppState> {
     OpenApiRouter::with_openapi(ApiDoc::openapi())
         .routes(api!(brdfs::create_brdf, brdfs::list_brdfs))
-        .routes(api!(brdfs::get_brdf))
+        .routes(api!(brdfs::get_brdf, brdfs::delete_brdf))
         .routes(api!(brdfs::get_table))
         .routes(api!(scenes::create_scene))
         .routes(api!(eval::get_eval, eval::post_eval))
@@ -313,6 +313,8 @@ pub async fn serve(
             max_streams: config.limits.max_streams,
             instance_id: config.instance_id.clone(),
             lease: config.lease,
+            max_cache_bytes: config.max_cache_bytes,
+            eviction_grace: config.eviction_grace,
         },
     )
     .await?;

@@ -35,6 +35,10 @@ pub enum JobFailure {
     Internal,
     /// The solve ended without reporting an outcome: retryable.
     NoOutcome,
+    /// The result was evicted to keep the cache within `--max-cache-bytes`
+    /// (its row says so, so that the next submission solves it again):
+    /// retryable.
+    Evicted,
 }
 
 /// The stored record of a [`JobFailure`]: the JSON object of the row's
@@ -111,6 +115,15 @@ impl FailureRecord {
                     "Internal error",
                     500,
                     "the solve failed unexpectedly; submitting the spec again retries it",
+                )
+            },
+            JobFailure::Evicted => Self {
+                retryable: Some(true),
+                ..Self::new(
+                    "evicted",
+                    "Result evicted",
+                    410,
+                    "the result was evicted from the cache (--max-cache-bytes); submitting the spec again solves it again",
                 )
             },
             JobFailure::NoOutcome => Self {

@@ -87,6 +87,8 @@ pub struct Metrics {
     pub leases_expired: AtomicU64,
     /// Claims by this instance of jobs an earlier claim did not finish.
     pub reclaimed: AtomicU64,
+    /// Results this instance evicted (`--max-cache-bytes`).
+    pub evicted: AtomicU64,
 }
 
 /// Gauges read at scrape time.
@@ -108,6 +110,10 @@ pub struct Gauges {
     pub db_connections_in_use: u32,
     /// Idle database connections of the pool.
     pub db_connections_idle: u32,
+    /// Bytes of the blobs done rows point at.
+    pub cache_bytes: i64,
+    /// `--max-cache-bytes` (`None`: unbounded).
+    pub cache_max_bytes: Option<u64>,
 }
 
 impl Metrics {
@@ -252,6 +258,26 @@ impl Metrics {
             "polbrdf_blobs_invalid_total",
             "Stored results found missing or corrupt (solved again, never served).",
             load(&self.blobs_invalid),
+        );
+        gauge(
+            &mut out,
+            "polbrdf_cache_bytes",
+            "Bytes of the stored results (over every instance on the index).",
+            g.cache_bytes as f64,
+        );
+        if let Some(max) = g.cache_max_bytes {
+            gauge(
+                &mut out,
+                "polbrdf_cache_max_bytes",
+                "The bound on the stored results (--max-cache-bytes).",
+                max as f64,
+            );
+        }
+        counter(
+            &mut out,
+            "polbrdf_cache_evictions_total",
+            "Results this instance evicted to keep the cache within --max-cache-bytes.",
+            load(&self.evicted),
         );
         let instance = escape(&g.instance);
         let _ = writeln!(

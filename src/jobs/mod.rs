@@ -39,6 +39,7 @@
 //!   get a grace period to finish, and are released to the queue if they
 //!   do not.
 
+pub mod evict;
 pub mod failure;
 pub mod metrics;
 mod parts;
@@ -73,6 +74,12 @@ pub struct JobsConfig {
     pub instance_id: String,
     /// How long a claim holds without a renewal (`--lease-secs`).
     pub lease: Duration,
+    /// The bound on the blobs of done rows (`--max-cache-bytes`; `None`:
+    /// unbounded).
+    pub max_cache_bytes: Option<u64>,
+    /// Results served or written this recently are never evicted
+    /// (`--eviction-grace-secs`).
+    pub eviction_grace: Duration,
 }
 
 impl JobsConfig {
@@ -159,6 +166,8 @@ pub struct Jobs {
     flights: Mutex<HashMap<String, Arc<Flight>>>,
     /// Ids this instance is solving (under its lease).
     running: Mutex<HashSet<String>>,
+    /// When this instance last recorded a serve of each result.
+    touched: Mutex<HashMap<String, std::time::Instant>>,
     /// One permit per worker: a claim takes one, the job's end gives it back.
     slots: Arc<Semaphore>,
     /// Work may be waiting: a local enqueue, a notification, a release.
@@ -206,6 +215,7 @@ impl Jobs {
             pool,
             flights: Mutex::new(HashMap::new()),
             running: Mutex::new(HashSet::new()),
+            touched: Mutex::new(HashMap::new()),
             wake: Notify::new(),
             stopping: Arc::new(AtomicBool::new(false)),
             stop_tx: watch::channel(false).0,
@@ -245,15 +255,19 @@ impl Jobs {
         let counts = self.index.counts().await?;
         let depth = self.index.queue_depth().await?;
         let (in_use, idle) = self.index.pool_connections();
+        let cache_bytes = self.index.cache_bytes().await?;
+        let running = self.running.lock().expect("running lock").len();
         Ok(Gauges {
             queue_depth: depth.max(0) as usize,
             queue_capacity: self.config.max_queue,
-            running: self.running.lock().expect("running lock").len(),
+            running,
             workers: self.config.workers,
             jobs_by_state: counts.into_iter().map(|(s, n)| (s.as_str(), n)).collect(),
             instance: self.config.instance_id.clone(),
             db_connections_in_use: in_use,
             db_connections_idle: idle,
+            cache_bytes,
+            cache_max_bytes: self.config.max_cache_bytes,
         })
     }
 
@@ -322,11 +336,14 @@ impl Jobs {
                         _ if row.media_type.as_deref() != Some(result::MEDIA_TYPE) => false,
                         (Some(d), Some(size)) => {
                             let (blobs, d) = (self.blobs.clone(), d.clone());
+                            // The store not answering is an error (503/500),
+                            // never a reason to solve an existing blob again.
                             tokio::task::spawn_blocking(move || {
                                 blobs.looks_present(&d, size as u64)
                             })
                             .await
-                            .unwrap_or(false)
+                            .map_err(|e| JobError::Storage(e.to_string()))?
+                            .map_err(|e| JobError::Storage(e.to_string()))?
                         }
                         _ => false,
                     };

@@ -90,6 +90,9 @@ impl Jobs {
         if let Some(l) = listener {
             tokio::spawn(self.clone().listen(l));
         }
+        if let Some(max) = self.config.max_cache_bytes {
+            tokio::spawn(self.clone().evict_loop(max));
+        }
         if self.config.workers > 0 {
             tokio::spawn(self.dispatch());
         } else {
@@ -98,7 +101,7 @@ impl Jobs {
     }
 
     /// Resolve when the instance stops (at once if it has).
-    async fn stopped(&self) {
+    pub(super) async fn stopped(&self) {
         let mut rx = self.stop_tx.subscribe();
         let _ = rx.wait_for(|s| *s).await;
     }

@@ -115,10 +115,29 @@ impl FileBlobs {
         Ok(Some(bytes))
     }
 
+    /// Remove a blob (absent already: nothing to do).
+    pub fn delete(&self, digest: &str) -> io::Result<()> {
+        if !is_sha256_hex(digest) {
+            return Ok(());
+        }
+        match fs::remove_file(self.path(digest)) {
+            Ok(()) => Ok(()),
+            Err(e) if e.kind() == io::ErrorKind::NotFound => Ok(()),
+            Err(e) => Err(e),
+        }
+    }
+
     /// Cheap presence check (exists with the expected size); [`Self::get`]
     /// verifies the bytes.
-    pub fn looks_present(&self, digest: &str, size: u64) -> bool {
-        is_sha256_hex(digest) && fs::metadata(self.path(digest)).is_ok_and(|m| m.len() == size)
+    pub fn looks_present(&self, digest: &str, size: u64) -> io::Result<bool> {
+        if !is_sha256_hex(digest) {
+            return Ok(false);
+        }
+        match fs::metadata(self.path(digest)) {
+            Ok(m) => Ok(m.len() == size),
+            Err(e) if e.kind() == io::ErrorKind::NotFound => Ok(false),
+            Err(e) => Err(e),
+        }
     }
 }
 
@@ -147,7 +166,8 @@ mod tests {
         );
         assert!(store.path(&digest).starts_with(dir.join("2c")));
         assert_eq!(store.get(&digest).unwrap().unwrap(), b"hello");
-        assert!(store.looks_present(&digest, 5));
+        assert!(store.looks_present(&digest, 5).unwrap());
+        assert!(!store.looks_present(&digest, 6).unwrap());
         // Idempotent.
         assert_eq!(store.put(b"hello").unwrap(), digest);
         // Corrupt: not served, removed, and a new put repairs it.

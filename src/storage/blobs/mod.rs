@@ -73,7 +73,7 @@ impl BlobLocation {
     }
 }
 
-/// Receives the operation (`get`, `put`, `head`) and duration of each
+/// Receives the operation (`get`, `put`, `head`, `delete`) and duration of each
 /// blob-store call.
 pub type Observer = Arc<dyn Fn(&'static str, Duration) + Send + Sync>;
 
@@ -173,9 +173,18 @@ impl BlobStore {
         })
     }
 
+    /// Remove a blob (evicted or deleted); absent already is no error.
+    pub fn delete(&self, digest: &str) -> io::Result<()> {
+        self.timed("delete", || match &self.store {
+            Store::File(f) => f.delete(digest),
+            Store::S3(s) => s.delete(digest),
+        })
+    }
+
     /// Cheap presence check (exists with the expected size); [`Self::get`]
-    /// verifies the bytes.
-    pub fn looks_present(&self, digest: &str, size: u64) -> bool {
+    /// verifies the bytes. An error means the store did not answer, not
+    /// that the blob is absent.
+    pub fn looks_present(&self, digest: &str, size: u64) -> io::Result<bool> {
         self.timed("head", || match &self.store {
             Store::File(f) => f.looks_present(digest, size),
             Store::S3(s) => s.looks_present(digest, size),
@@ -232,9 +241,15 @@ mod tests {
             .unwrap()
             .with_observer(Arc::new(move |op, _| log.lock().unwrap().push(op)));
         let d = store.put(b"x").unwrap();
-        assert!(store.looks_present(&d, 1));
+        assert!(store.looks_present(&d, 1).unwrap());
         assert_eq!(store.get(&d).unwrap().unwrap(), b"x");
-        assert_eq!(*seen.lock().unwrap(), ["put", "head", "get"]);
+        store.delete(&d).unwrap();
+        store.delete(&d).unwrap();
+        assert_eq!(store.get(&d).unwrap(), None);
+        assert_eq!(
+            *seen.lock().unwrap(),
+            ["put", "head", "get", "delete", "delete", "get"]
+        );
         assert_eq!(store.url(), format!("file://{}", dir.display()));
         std::fs::remove_dir_all(&dir).unwrap();
     }

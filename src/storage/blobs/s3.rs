@@ -102,7 +102,7 @@ impl S3Blobs {
     /// size is kept as it is.
     pub fn put(&self, bytes: &[u8]) -> io::Result<String> {
         let digest = sha256_hex(bytes);
-        if self.looks_present(&digest, bytes.len() as u64) {
+        if self.looks_present(&digest, bytes.len() as u64)? {
             return Ok(digest);
         }
         let key = self.key(&digest);
@@ -142,12 +142,28 @@ impl S3Blobs {
         Ok(Some(bytes.to_vec()))
     }
 
-    /// Cheap presence check (`HEAD`: exists with the expected size).
-    pub fn looks_present(&self, digest: &str, size: u64) -> bool {
-        is_sha256_hex(digest)
-            && self
-                .runtime
-                .block_on(self.store.head(&self.key(digest)))
-                .is_ok_and(|m| m.size == size)
+    /// Delete a blob (absent already: nothing to do).
+    pub fn delete(&self, digest: &str) -> io::Result<()> {
+        if !is_sha256_hex(digest) {
+            return Ok(());
+        }
+        match self.runtime.block_on(self.store.delete(&self.key(digest))) {
+            Ok(()) | Err(object_store::Error::NotFound { .. }) => Ok(()),
+            Err(e) => Err(io_error(e)),
+        }
+    }
+
+    /// Cheap presence check (`HEAD`: exists with the expected size). An
+    /// answer other than found or not found is an error, not an absence:
+    /// a blob that exists is never solved again because S3 did not answer.
+    pub fn looks_present(&self, digest: &str, size: u64) -> io::Result<bool> {
+        if !is_sha256_hex(digest) {
+            return Ok(false);
+        }
+        match self.runtime.block_on(self.store.head(&self.key(digest))) {
+            Ok(m) => Ok(m.size == size),
+            Err(object_store::Error::NotFound { .. }) => Ok(false),
+            Err(e) => Err(io_error(e)),
+        }
     }
 }

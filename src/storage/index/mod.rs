@@ -161,7 +161,8 @@ macro_rules! on_backend {
     };
 }
 
-// After the macro: the queue methods dispatch with it too.
+// After the macro: the queue and eviction methods dispatch with it too.
+pub mod evict;
 pub mod queue;
 
 impl Index {

@@ -432,3 +432,98 @@ impl PgIndex {
         Ok(l)
     }
 }
+
+/// The cache-size methods of [`super::evict`].
+impl PgIndex {
+    pub(super) async fn touch(
+        &self,
+        id: &str,
+        now: i64,
+        every_ms: i64,
+    ) -> Result<(), StorageError> {
+        sqlx::query(
+            "UPDATE jobs SET last_served_at = $2
+             WHERE id = $1 AND status = 'done'
+               AND (last_served_at IS NULL OR last_served_at < $2 - $3)",
+        )
+        .bind(id)
+        .bind(now)
+        .bind(every_ms)
+        .execute(&self.pool)
+        .await?;
+        Ok(())
+    }
+
+    pub(super) async fn cache_bytes(&self) -> Result<i64, StorageError> {
+        let n: Option<i64> = sqlx::query_scalar(
+            "SELECT CAST(SUM(size) AS BIGINT) FROM jobs WHERE status = 'done' AND digest IS NOT NULL",
+        )
+        .fetch_one(&self.pool)
+        .await?;
+        Ok(n.unwrap_or(0))
+    }
+
+    pub(super) async fn eviction_candidates(
+        &self,
+        cutoff: i64,
+        limit: i64,
+    ) -> Result<Vec<(String, String, i64)>, StorageError> {
+        let rows = sqlx::query(
+            "SELECT id, digest, size FROM jobs
+             WHERE status = 'done' AND digest IS NOT NULL AND size IS NOT NULL
+               AND COALESCE(last_served_at, finished_at, 0) < $1
+             ORDER BY COALESCE(last_served_at, finished_at, 0), id LIMIT $2",
+        )
+        .bind(cutoff)
+        .bind(limit)
+        .fetch_all(&self.pool)
+        .await?;
+        rows.iter()
+            .map(|r| Ok((r.try_get("id")?, r.try_get("digest")?, r.try_get("size")?)))
+            .collect()
+    }
+
+    pub(super) async fn evict(
+        &self,
+        id: &str,
+        digest: &str,
+        cutoff: i64,
+        error_json: &str,
+        now: i64,
+    ) -> Result<bool, StorageError> {
+        let r = sqlx::query(
+            "UPDATE jobs SET status = 'failed', error = $4, digest = NULL, size = NULL,
+               media_type = NULL, updated_at = $5, finished_at = $5
+             WHERE id = $1 AND status = 'done' AND digest = $2
+               AND COALESCE(last_served_at, finished_at, 0) < $3",
+        )
+        .bind(id)
+        .bind(digest)
+        .bind(cutoff)
+        .bind(error_json)
+        .bind(now)
+        .execute(&self.pool)
+        .await?;
+        Ok(r.rows_affected() == 1)
+    }
+
+    pub(super) async fn digest_in_use(&self, digest: &str) -> Result<bool, StorageError> {
+        let n: i64 =
+            sqlx::query_scalar("SELECT COUNT(*) FROM jobs WHERE digest = $1 AND status = 'done'")
+                .bind(digest)
+                .fetch_one(&self.pool)
+                .await?;
+        Ok(n > 0)
+    }
+
+    pub(super) async fn delete(&self, id: &str) -> Result<Option<JobRow>, StorageError> {
+        let sql = format!(
+            "DELETE FROM jobs WHERE id = $1 AND status IN ('done', 'failed') RETURNING {COLUMNS}"
+        );
+        let row = sqlx::query(sqlx::AssertSqlSafe(sql))
+            .bind(id)
+            .fetch_optional(&self.pool)
+            .await?;
+        row.map(|r| decode_row(&r)).transpose()
+    }
+}

@@ -104,9 +104,19 @@ async fn delete_removes_a_final_result_and_refuses_a_job_in_progress() {
     let digest = v["result"]["digest"].as_str().unwrap().to_string();
     assert!(blob_path(&s, &digest).exists());
 
+    // An eval keeps the table in the instance's memory.
+    let eval = s.url(&format!(
+        "/v1/brdfs/{id}/eval?theta_i_deg=30&phi_i_deg=0&theta_o_deg=30&phi_o_deg=180"
+    ));
+    assert_eq!(c.get(&eval).send().await.unwrap().status(), 200);
     let url = s.url(&format!("/v1/brdfs/{id}"));
     let r = c.delete(&url).send().await.unwrap();
     assert_eq!(r.status(), 204);
+    assert_eq!(
+        c.get(&eval).send().await.unwrap().status(),
+        404,
+        "not served from memory"
+    );
     assert!(!blob_path(&s, &digest).exists());
     assert_eq!(get_json(&c, &s, &format!("/v1/brdfs/{id}")).await.0, 404);
     assert_eq!(c.delete(&url).send().await.unwrap().status(), 404);

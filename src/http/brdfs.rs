@@ -521,7 +521,10 @@ pub async fn delete_brdf(
         return Err(ApiError::NotFound(id));
     }
     match state.0.jobs.delete(&id).await? {
-        Deleted::Gone => Ok(StatusCode::NO_CONTENT.into_response()),
+        Deleted::Gone => {
+            state.0.tables.forget(&id);
+            Ok(StatusCode::NO_CONTENT.into_response())
+        }
         Deleted::NotFound => Err(ApiError::NotFound(id)),
         Deleted::InProgress(status) => Err(ApiError::InProgress {
             id,

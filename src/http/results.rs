@@ -108,8 +108,13 @@ pub async fn table_of(state: &AppState, id: &str) -> Result<(JobRow, Arc<Table>)
 #[derive(Debug, Default)]
 pub struct TableCache {
     tables: Mutex<VecDeque<(String, Arc<Table>)>>,
-    done: Mutex<VecDeque<(String, JobRow, Arc<Table>)>>,
+    done: Mutex<VecDeque<(String, JobRow, Arc<Table>, std::time::Instant)>>,
 }
+
+/// How long a done row is taken from [`TableCache`] without asking the
+/// index again: a result deleted or evicted on any instance of a farm stops
+/// being served here within this time.
+const DONE_TTL: std::time::Duration = std::time::Duration::from_secs(10);
 
 /// Tables kept by [`TableCache`].
 const CACHED_TABLES: usize = 8;
@@ -127,17 +132,25 @@ impl TableCache {
     fn get_done(&self, id: &str) -> Option<(JobRow, Arc<Table>)> {
         let q = self.done.lock().expect("done cache");
         q.iter()
-            .find(|(i, _, _)| i == id)
-            .map(|(_, row, t)| (row.clone(), t.clone()))
+            .find(|(i, _, _, at)| i == id && at.elapsed() < DONE_TTL)
+            .map(|(_, row, t, _)| (row.clone(), t.clone()))
     }
 
     fn put_done(&self, id: &str, row: JobRow, table: Arc<Table>) {
         let mut q = self.done.lock().expect("done cache");
-        q.retain(|(i, _, _)| i != id);
-        q.push_back((id.to_string(), row, table));
+        q.retain(|(i, _, _, _)| i != id);
+        q.push_back((id.to_string(), row, table, std::time::Instant::now()));
         while q.len() > CACHED_TABLES {
             q.pop_front();
         }
+    }
+
+    /// Drop what is kept of result `id` (deleted here).
+    pub fn forget(&self, id: &str) {
+        self.done
+            .lock()
+            .expect("done cache")
+            .retain(|(i, _, _, _)| i != id);
     }
 
     fn put(&self, digest: String, table: Arc<Table>) {

@@ -231,16 +231,20 @@ pub async fn wait_done(c: &reqwest::Client, s: &Server, id: &str) -> Value {
     v
 }
 
-/// The value of an unlabelled metric.
-pub async fn metric(c: &reqwest::Client, s: &Server, name: &str) -> f64 {
-    let text = c
-        .get(s.url("/metrics"))
+/// The server's `/metrics` text.
+pub async fn metrics_text(c: &reqwest::Client, s: &Server) -> String {
+    c.get(s.url("/metrics"))
         .send()
         .await
         .unwrap()
         .text()
         .await
-        .unwrap();
+        .unwrap()
+}
+
+/// The value of an unlabelled metric.
+pub async fn metric(c: &reqwest::Client, s: &Server, name: &str) -> f64 {
+    let text = metrics_text(c, s).await;
     text.lines()
         .find_map(|l| {
             l.strip_prefix(name)
@@ -253,15 +257,9 @@ pub async fn metric(c: &reqwest::Client, s: &Server, name: &str) -> f64 {
 /// The sum of every sample of a metric, whatever its labels (0 when it
 /// has none yet).
 pub async fn metric_sum(c: &reqwest::Client, s: &Server, name: &str) -> f64 {
-    let text = c
-        .get(s.url("/metrics"))
-        .send()
+    metrics_text(c, s)
         .await
-        .unwrap()
-        .text()
-        .await
-        .unwrap();
-    text.lines()
+        .lines()
         .filter(|l| {
             l.strip_prefix(name)
                 .is_some_and(|r| r.starts_with(' ') || r.starts_with('{'))

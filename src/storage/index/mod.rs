@@ -416,6 +416,17 @@ where
     Ok(out)
 }
 
+/// The `id` column of each row (`UPDATE … RETURNING id`).
+fn decode_ids<R: Row>(rows: &[R]) -> Result<Vec<String>, StorageError>
+where
+    for<'n> &'n str: ColumnIndex<R>,
+    for<'v> String: Decode<'v, R::Database> + Type<R::Database>,
+{
+    rows.iter()
+        .map(|r| r.try_get("id").map_err(Into::into))
+        .collect()
+}
+
 /// The scheme of a URL, for an error message that must not echo a password.
 fn scheme_of(url: &str) -> String {
     url.split_once(':')

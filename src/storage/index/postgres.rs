@@ -12,7 +12,7 @@
 
 use super::{
     COLUMNS, Done, JobRow, SQL_COUNTS, SQL_PING, SQL_WITHOUT_FAMILY, Status, decode_counts,
-    decode_row, json_array,
+    decode_ids, decode_row, json_array,
 };
 use crate::plan::{family_of_canonical, result_version};
 use crate::storage::StorageError;
@@ -370,9 +370,7 @@ impl PgIndex {
         if !rows.is_empty() {
             self.notify().await?;
         }
-        rows.iter()
-            .map(|r| r.try_get("id").map_err(Into::into))
-            .collect()
+        decode_ids(&rows)
     }
 
     /// Shared by instances: only rows this instance id held are its own
@@ -396,9 +394,7 @@ impl PgIndex {
         if !rows.is_empty() {
             self.notify().await?;
         }
-        rows.iter()
-            .map(|r| r.try_get("id").map_err(Into::into))
-            .collect()
+        decode_ids(&rows)
     }
 
     pub(super) async fn queue_depth(&self) -> Result<i64, StorageError> {

@@ -5,7 +5,7 @@
 
 use super::{
     COLUMNS, Done, JobRow, SQL_COUNTS, SQL_PING, SQL_WITHOUT_FAMILY, Status, decode_counts,
-    decode_row, json_array,
+    decode_ids, decode_row, json_array,
 };
 use crate::plan::{family_of_canonical, result_version};
 use crate::storage::StorageError;
@@ -341,9 +341,7 @@ impl SqliteIndex {
         .bind(now)
         .fetch_all(&self.pool)
         .await?;
-        rows.iter()
-            .map(|r| r.try_get("id").map_err(Into::into))
-            .collect()
+        decode_ids(&rows)
     }
 
     /// One instance's file: every running row was left by an earlier run
@@ -362,9 +360,7 @@ impl SqliteIndex {
         .bind(now)
         .fetch_all(&self.pool)
         .await?;
-        rows.iter()
-            .map(|r| r.try_get("id").map_err(Into::into))
-            .collect()
+        decode_ids(&rows)
     }
 
     pub(super) async fn queue_depth(&self) -> Result<i64, StorageError> {

@@ -108,8 +108,12 @@ pub async fn table_of(state: &AppState, id: &str) -> Result<(JobRow, Arc<Table>)
 #[derive(Debug, Default)]
 pub struct TableCache {
     tables: Mutex<VecDeque<(String, Arc<Table>)>>,
-    done: Mutex<VecDeque<(String, JobRow, Arc<Table>, std::time::Instant)>>,
+    done: Mutex<VecDeque<DoneEntry>>,
 }
+
+/// A done row kept by [`TableCache`]: its id, row and table, and when it
+/// was read from the index.
+type DoneEntry = (String, JobRow, Arc<Table>, std::time::Instant);
 
 /// How long a done row is taken from [`TableCache`] without asking the
 /// index again: a result deleted or evicted on any instance of a farm stops

@@ -1,13 +1,14 @@
 //! polbrdf: polarized BRDFs of particulate layers from first principles.
 //!
 //! Layers (dependencies point downwards only): `cli`, `http` -> `jobs`,
-//! `storage` -> `brdf` -> `plan` (lowering) -> `material` (the spec) ->
+//! `storage`, `fetch` -> `brdf` -> `plan` (lowering) -> `material` (the spec) ->
 //! `solver` -> `physics`. `physics` and `solver` are pure: no I/O.
 //! Conventions (units, Stokes frames, signs) are in `docs/conventions.md`.
 
 pub mod brdf;
 pub mod cli;
 pub mod digest;
+pub mod fetch;
 pub mod http;
 pub mod jobs;
 pub mod material;

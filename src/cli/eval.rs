@@ -1,5 +1,5 @@
 //! `polbrdf eval TABLE --theta-i DEG --phi-i DEG --theta-o DEG --phi-o DEG
-//! [--wavelength-nm NM]`: one Mueller BRDF from a table
+//! [--wavelength-nm NM] [--cache-dir DIR]`: one Mueller BRDF from a table
 //! (docs/table-format.md).
 
 use crate::brdf::export::{FRAMES, mueller_json};
@@ -27,11 +27,14 @@ pub struct EvalArgs {
     /// wavelengths); may be omitted for a one-wavelength table.
     #[arg(long)]
     pub wavelength_nm: Option<f64>,
+    #[command(flatten)]
+    pub cache: super::source::CacheArgs,
 }
 
 /// Run `eval`.
 pub fn run(a: &EvalArgs) -> Result<Value, String> {
-    let table = super::source::load_table(&a.table)?;
+    let cache = a.cache.resolve()?;
+    let table = super::source::load_table_with(&a.table, cache.as_ref())?;
     let d = Directions {
         theta_i_deg: a.theta_i,
         phi_i_deg: a.phi_i,

@@ -81,6 +81,8 @@ pub struct ExportArgs {
     /// --format mitsuba: what nodes below the horizon hold (default extend).
     #[arg(long, value_enum)]
     pub below_horizon: Option<BelowHorizonArg>,
+    #[command(flatten)]
+    pub cache: super::source::CacheArgs,
 }
 
 impl ExportArgs {
@@ -118,7 +120,8 @@ pub fn run(a: &ExportArgs) -> Result<Value, String> {
     if a.format != ExportFormat::Mitsuba && a.has_mitsuba_options() {
         return Err("--phi-d-nodes, --theta-d-nodes, --theta-h-nodes, --resample-wavelengths and --below-horizon apply to --format mitsuba only".into());
     }
-    let table = super::source::load_table(&a.table)?;
+    let cache = a.cache.resolve()?;
+    let table = super::source::load_table_with(&a.table, cache.as_ref())?;
     match a.format {
         ExportFormat::Npy => {
             if a.points.is_some() || a.theta_i_deg.is_some() || a.wavelength_nm.is_some() {

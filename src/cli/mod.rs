@@ -5,6 +5,7 @@ pub mod bench;
 pub mod convergence;
 pub mod eval;
 pub mod export;
+pub mod fetch;
 pub mod mie;
 pub mod plot;
 pub mod progress;
@@ -50,6 +51,12 @@ enum Command {
     Eval(eval::EvalArgs),
     /// Export a BRDF table: dense .npy, JSON point set or CSV slice.
     Export(export::ExportArgs),
+    /// Copy a service result's table into a render node's cache directory (or find it there).
+    ///
+    /// Verified against the service's digest, written atomically, one download per node
+    /// however many processes ask at once; works offline once cached (docs/deploy.md,
+    /// "Render nodes"). `eval`, `export` and `render` use the same cache with --cache-dir.
+    Fetch(fetch::FetchArgs),
     /// Error against run time: solve at increasing streams, compare with a reference.
     Convergence(convergence::ConvergenceArgs),
     /// Plots of the figures of Collin et al., "Computation of Polarized Subsurface
@@ -77,6 +84,7 @@ pub fn main() -> i32 {
         Command::Solve(a) => solve::run(&a),
         Command::Eval(a) => eval::run(&a),
         Command::Export(a) => export::run(&a),
+        Command::Fetch(a) => fetch::run(&a),
         Command::Convergence(a) => convergence::run(&a),
         Command::Bench(b) => bench::run(&b),
         Command::Plot(a) => plot::run(&a),

@@ -5,7 +5,7 @@
 //! prints a JSON summary.
 
 use super::scene::{load_materials, plan_loaded, resolve, scene_dir};
-use super::source::load_table;
+use super::source::load_table_with;
 use crate::brdf::Table;
 use crate::render::{self, Overrides, output, scene, scene_plan};
 use clap::Args;
@@ -63,6 +63,9 @@ pub struct RenderArgs {
     /// waiting for the jobs) instead of locally, e.g. http://127.0.0.1:8080.
     #[arg(long)]
     pub server: Option<String>,
+    // Cache for tables named by service URLs (in the scene, or the results of --server).
+    #[command(flatten)]
+    pub cache: super::source::CacheArgs,
 }
 
 fn write(path: &str, bytes: &[u8]) -> Result<(), String> {
@@ -195,6 +198,7 @@ pub fn run(a: &RenderArgs) -> Result<Value, String> {
         return Err(format!("--exposure {e} must be > 0"));
     }
     let scene_dir = scene_dir(&a.scene);
+    let cache = a.cache.resolve()?;
 
     // Tables: each distinct source once; material specs solved locally
     // for what the scene needs (`render::scene_plan`), each distinct
@@ -213,8 +217,8 @@ pub fn run(a: &RenderArgs) -> Result<Value, String> {
     }
     let materials = load_materials(&desc, &scene_dir).map_err(|e| format!("{}: {e}", a.scene))?;
     let plan = if materials.iter().any(Option::is_some) {
-        let p =
-            plan_loaded(&desc, &materials, &scene_dir).map_err(|e| format!("{}: {e}", a.scene))?;
+        let p = plan_loaded(&desc, &materials, &scene_dir, cache.as_ref())
+            .map_err(|e| format!("{}: {e}", a.scene))?;
         if p.wavelengths_nm.iter().all(Option::is_some) {
             desc.wavelengths_nm = Some(p.wavelengths_nm.iter().flatten().copied().collect());
         }
@@ -240,7 +244,8 @@ pub fn run(a: &RenderArgs) -> Result<Value, String> {
             Some((_, t)) => t.clone(),
             None => {
                 let t = Arc::new(match &what {
-                    None => load_table(&key).map_err(|e| format!("spheres[{k}].table: {e}"))?,
+                    None => load_table_with(&key, cache.as_ref())
+                        .map_err(|e| format!("spheres[{k}].table: {e}"))?,
                     Some(spec) => {
                         let (t, info) = solve_material(k, spec)?;
                         solved.push(json!({"name": scene::sphere_name(&desc, k), "id": t.metadata.spec_hash, "wavelengths": info}));

@@ -3,7 +3,7 @@
 //! `scene plan`"; the rules are `render::scene_plan`). Also the reading of
 //! material specs named by a scene, shared with `polbrdf render`.
 
-use super::source::load_table;
+use super::source::{Cache, load_table_with};
 use crate::material::{self, SpecError};
 use crate::render::scene::{self, MaterialDesc, SceneDesc, SurfaceSource};
 use crate::render::scene_plan::{self, MaterialInput, ScenePlan};
@@ -102,15 +102,16 @@ pub fn resolve(dir: &Path, p: &str) -> String {
 /// `wavelengths_nm` and with a table as the first sphere, that table
 /// decides the channels: it is read, and must be when material spheres
 /// depend on it (otherwise a table that cannot be read is reported as not
-/// read).
+/// read). Service tables are read through `cache` when given.
 pub fn plan_loaded(
     desc: &SceneDesc,
     materials: &[Option<MaterialInput>],
     dir: &Path,
+    cache: Option<&Cache>,
 ) -> Result<ScenePlan, String> {
     let first_table: Option<Vec<Option<f64>>> = match desc.spheres.first().map(|s| s.source()) {
         Some(SurfaceSource::Table(t)) if desc.wavelengths_nm.is_none() => {
-            match load_table(&resolve(dir, t)) {
+            match load_table_with(&resolve(dir, t), cache) {
                 Ok(table) => Some(table.wavelengths.iter().map(|w| w.wavelength_nm).collect()),
                 Err(e) if materials.iter().any(Option::is_some) => {
                     return Err(format!("spheres[0].table: {e}"));
@@ -141,7 +142,8 @@ fn plan(a: &PlanArgs) -> Result<Value, String> {
     let desc = scene::parse(&text).map_err(|e| format!("{}: {e}", a.scene))?;
     let dir = scene_dir(&a.scene);
     let materials = load_materials(&desc, &dir).map_err(|e| format!("{}: {e}", a.scene))?;
-    let plan = plan_loaded(&desc, &materials, &dir).map_err(|e| format!("{}: {e}", a.scene))?;
+    let plan =
+        plan_loaded(&desc, &materials, &dir, None).map_err(|e| format!("{}: {e}", a.scene))?;
     let mut doc = serde_json::to_value(&plan).expect("JSON");
     doc["scene"] = json!(a.scene);
     doc["cost_model"] = cost_model();

@@ -379,5 +379,11 @@ async fn an_s3_outage_delays_blob_writes_and_loses_nothing() {
     assert_eq!(t.status(), 200);
     let digest = done["result"]["digest"].as_str().unwrap().to_string();
     assert_eq!(sha256_hex(&t.bytes().await.unwrap()), digest);
-    assert_eq!(s3_keys(&c, &store).await.len(), 1 + wavelengths);
+    let keys = s3_keys(&c, &store).await;
+    assert_eq!(
+        keys.len(),
+        1 + wavelengths,
+        "{keys:?}\nlog:\n{}",
+        s.log_text()
+    );
 }

@@ -94,6 +94,13 @@ impl Jobs {
             tokio::spawn(self.clone().evict_loop(max));
         }
         if self.config.workers > 0 {
+            if !solves_on_the_farm_kernels() {
+                tracing::warn!(
+                    "this CPU lacks AVX2 or FMA: its results are correct, but may differ in the \
+                     last bits from those of x86-64-v3 machines (docs/service.md, \"The same \
+                     bytes on every node\"); in a farm, solve on x86-64-v3 or newer"
+                );
+            }
             tokio::spawn(self.dispatch());
         } else {
             tracing::info!("serve only (--workers 0): other instances solve");
@@ -434,6 +441,20 @@ impl Jobs {
         if let Err(e) = r {
             tracing::error!(error = %e, "could not record job progress");
         }
+    }
+}
+
+/// Does this CPU run the solver's x86-64-v3 kernels (AVX2 + FMA), those of
+/// every x86-64-v3 and -v4 machine? (The SIMD layer is built without its
+/// AVX-512 kernels, so v4 machines run the v3 ones: the same bytes.)
+fn solves_on_the_farm_kernels() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
     }
 }
 

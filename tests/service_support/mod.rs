@@ -66,6 +66,17 @@ pub struct Server {
 impl Server {
     /// Start on 127.0.0.1:0 with `data_dir` and extra flags / env vars.
     pub fn start(data_dir: &Path, args: &[&str], envs: &[(&str, &str)]) -> Server {
+        Self::start_under(&[], data_dir, args, envs)
+    }
+
+    /// The same, run by `wrapper` (e.g. `qemu-x86_64 -cpu Haswell`; empty:
+    /// directly).
+    pub fn start_under(
+        wrapper: &[&str],
+        data_dir: &Path,
+        args: &[&str],
+        envs: &[(&str, &str)],
+    ) -> Server {
         let log = data_dir.with_extension(format!(
             "{}.log",
             std::time::SystemTime::now()
@@ -73,7 +84,15 @@ impl Server {
                 .unwrap()
                 .as_nanos()
         ));
-        let mut cmd = Command::new(env!("CARGO_BIN_EXE_polbrdf"));
+        let binary = env!("CARGO_BIN_EXE_polbrdf");
+        let mut cmd = match wrapper.split_first() {
+            Some((program, rest)) => {
+                let mut c = Command::new(program);
+                c.args(rest).arg(binary);
+                c
+            }
+            None => Command::new(binary),
+        };
         cmd.arg("serve")
             .arg("--listen")
             .arg("127.0.0.1:0")

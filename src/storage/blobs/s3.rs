@@ -9,9 +9,12 @@
 //!   overwrite by another instance writes the same bytes (the key is their
 //!   digest).
 //! * **Retried.** `object_store` retries a request that could not be sent
-//!   or got a 5xx or a throttle, with exponential backoff (100 ms doubling
-//!   to 15 s, at most 10 retries within 3 min): an S3 server unavailable for
-//!   a few seconds delays a write. A write that still fails fails the job
+//!   or got a 5xx or a throttle, up to 10 times with jittered exponential
+//!   backoff from 100 ms (about 2 s in all when the server refuses
+//!   connections, measured), and a write that still fails, or was cut off
+//!   mid-transfer, is written again here up to [`PUT_ATTEMPTS`] times with
+//!   backoff from 250 ms: an S3 server unavailable for ten seconds or so
+//!   delays a write. A write that still fails fails the job
 //!   (`internal-error`, retryable), which is marked done only once its blob
 //!   is stored.
 //! * **Configured from the standard environment**, read once by
@@ -38,6 +41,10 @@ pub struct S3Blobs {
     prefix: String,
     runtime: tokio::runtime::Handle,
 }
+
+/// Writes of one blob before its error is the job's (with backoff from
+/// 250 ms doubling: 3.75 s of waiting in all).
+const PUT_ATTEMPTS: u32 = 5;
 
 fn io_error(e: object_store::Error) -> io::Error {
     io::Error::other(e)
@@ -102,14 +109,31 @@ impl S3Blobs {
     /// size is kept as it is.
     pub fn put(&self, bytes: &[u8]) -> io::Result<String> {
         let digest = sha256_hex(bytes);
-        if self.looks_present(&digest, bytes.len() as u64)? {
+        // Present already: keep it. Unknown (the store did not answer):
+        // write anyway, with the write's own retries.
+        if self
+            .looks_present(&digest, bytes.len() as u64)
+            .unwrap_or(false)
+        {
             return Ok(digest);
         }
         let key = self.key(&digest);
         let payload = PutPayload::from(bytes.to_vec());
-        self.runtime
-            .block_on(self.store.put(&key, payload))
-            .map_err(io_error)?;
+        // `object_store` retries a request it could not send; one cut off
+        // mid-transfer it does not (a PUT is not a safe method). The key is
+        // the bytes' digest, so writing again is harmless: retry that too.
+        let mut wait = std::time::Duration::from_millis(250);
+        for attempt in 1.. {
+            match self.runtime.block_on(self.store.put(&key, payload.clone())) {
+                Ok(_) => break,
+                Err(e) if attempt < PUT_ATTEMPTS => {
+                    tracing::warn!(%key, attempt, error = %e, "blob write failed; retrying");
+                    std::thread::sleep(wait);
+                    wait *= 2;
+                }
+                Err(e) => return Err(io_error(e)),
+            }
+        }
         Ok(digest)
     }
 

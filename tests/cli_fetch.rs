@@ -39,15 +39,9 @@ fn fetch(url: &str, dir: &Path, extra: &[&str]) -> Output {
 }
 
 async fn table_gets(c: &reqwest::Client, s: &Server) -> f64 {
-    let text = c
-        .get(s.url("/metrics"))
-        .send()
+    metrics_text(c, s)
         .await
-        .unwrap()
-        .text()
-        .await
-        .unwrap();
-    text.lines()
+        .lines()
         .find_map(|l| {
             l.strip_prefix(TABLE_GETS)
                 .map(|v| v.trim().parse().unwrap())

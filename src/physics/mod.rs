@@ -180,9 +180,18 @@ pub fn expand_polynomial(
 ) -> Result<Expanded, PhysicsError> {
     let full = expansion::expand(samples, weights, l_max);
     let n_check = (2 * l_max + 65).min(4001);
-    let theta: Vec<f64> = (0..n_check)
+    // Cosines of equally spaced angles, made exactly antisymmetric
+    // (`μ_{n−1−k} = −μ_k`) so that a sphere's or a size distribution's
+    // amplitudes take both signs from one recurrence (`mie::MieResult::amplitudes_at`).
+    let mut theta: Vec<f64> = (0..n_check)
         .map(|k| (std::f64::consts::PI * k as f64 / (n_check - 1) as f64).cos())
         .collect();
+    for k in 0..n_check / 2 {
+        theta[n_check - 1 - k] = -theta[k];
+    }
+    if n_check % 2 == 1 {
+        theta[n_check / 2] = 0.0;
+    }
     let reference = exact(&theta)?;
     let scale = reference.a1.iter().fold(0.0f64, |m, v| m.max(v.abs()));
     let round_trip = |c: &expansion::GreekCoefficients| -> f64 {

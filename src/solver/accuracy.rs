@@ -123,10 +123,17 @@ pub struct Estimated {
 
 /// f11 at every (outgoing, incident) user pair and probe azimuth.
 fn probe(r: &ReflectionFourier) -> Vec<f64> {
+    let all: Vec<usize> = (0..r.mu.len()).collect();
+    probe_incident(r, &all)
+}
+
+/// f11 at every outgoing user cosine, for the incident user cosines
+/// `incident` (indices into `r.mu`), at every probe azimuth.
+fn probe_incident(r: &ReflectionFourier, incident: &[usize]) -> Vec<f64> {
     let n = r.mu.len();
-    let mut out = Vec::with_capacity(n * n * PROBE_AZIMUTHS.len());
+    let mut out = Vec::with_capacity(n * incident.len() * PROBE_AZIMUTHS.len());
     for iu in 0..n {
-        for iv in 0..n {
+        for &iv in incident {
             for &d in &PROBE_AZIMUTHS {
                 out.push(r.brdf(iu, iv, d)[0][0]);
             }
@@ -250,10 +257,14 @@ fn coarse(problem: &Problem, n: usize, fine: usize) -> Problem {
 fn probe_at(
     problem: &Problem,
     mu_user: &[f64],
+    incident: &[usize],
     n: usize,
     fine: usize,
 ) -> Result<Vec<f64>, SolverError> {
-    Ok(probe(&reflection(&coarse(problem, n, fine), mu_user)?))
+    Ok(probe_incident(
+        &reflection(&coarse(problem, n, fine), mu_user)?,
+        incident,
+    ))
 }
 
 /// Solve at `problem.settings.streams` and estimate its error (A1) from
@@ -273,18 +284,46 @@ pub fn reflection_with_estimate_observed(
     mu_user: &[f64],
     on_progress: &(dyn Fn(f64) + Sync),
 ) -> Result<Estimated, SolverError> {
+    let all: Vec<usize> = (0..mu_user.len()).collect();
+    estimate_observed(problem, mu_user, &all, on_progress)
+}
+
+/// [`reflection_with_estimate`] with the estimate made for beams along the
+/// user cosines `mu_user[i]`, `i ∈ incident`, only (every outgoing user
+/// cosine): the error of a plane albedo or of a column of the BRDF, at
+/// `incident.len() / mu_user.len()` of the probe's cost.
+pub fn reflection_with_estimate_for_incident(
+    problem: &Problem,
+    mu_user: &[f64],
+    incident: &[usize],
+) -> Result<Estimated, SolverError> {
+    if let Some(&i) = incident.iter().find(|&&i| i >= mu_user.len()) {
+        return Err(SolverError::Invalid(format!(
+            "incident index {i} is outside the {} user cosines",
+            mu_user.len()
+        )));
+    }
+    estimate_observed(problem, mu_user, incident, &|_| {})
+}
+
+fn estimate_observed(
+    problem: &Problem,
+    mu_user: &[f64],
+    incident: &[usize],
+    on_progress: &(dyn Fn(f64) + Sync),
+) -> Result<Estimated, SolverError> {
     let n = problem.settings.streams;
     let fine = reflection_observed(problem, mu_user, &|done, bound| {
         on_progress(0.72 * done as f64 / bound.max(1) as f64)
     })?;
-    let at_n = probe(&fine);
+    let at_n = probe_incident(&fine, incident);
     let estimate = match estimate_levels(problem, n) {
         Some((a, b)) => {
-            let half = probe_at(problem, mu_user, a, n)?;
+            let half = probe_at(problem, mu_user, incident, a, n)?;
             let middle = if b == a {
                 half.clone()
             } else {
-                probe_at(problem, mu_user, b, n)?
+                probe_at(problem, mu_user, incident, b, n)?
             };
             let (est, contraction) = estimate_from_levels(
                 [a, b, n],
@@ -300,7 +339,7 @@ pub fn reflection_with_estimate_observed(
             }
         }
         None => {
-            let finer = probe_at(problem, mu_user, 2 * n, 2 * n)?;
+            let finer = probe_at(problem, mu_user, incident, 2 * n, 2 * n)?;
             ErrorEstimate {
                 max_err_f11: max_diff(&at_n, &finer) / max_of(&finer),
                 streams: [2 * n, 2 * n, n],

@@ -451,11 +451,18 @@ fn gamma_distribution_bulk_quantities() {
 
 // ------------------------------------------------------ materials, TiO2 case
 
-/// Material names are case-insensitive; TiO2 at 550 nm is 2.954 + 0i (seed
-/// Table 2, as tabulated in src/physics/materials.rs).
+/// Material names are case-insensitive; the seed's TiO2 at 550 nm is
+/// 2.954 + 0i (seed Table 2, as tabulated in src/physics/materials.rs).
 #[test]
 fn material_lookup_is_case_insensitive() {
-    let base = ["--wavelength-nm", "550", "--radius-um", "0.2"];
+    let base = [
+        "--material-source",
+        "seed",
+        "--wavelength-nm",
+        "550",
+        "--radius-um",
+        "0.2",
+    ];
     let mut outputs = Vec::new();
     for name in ["TiO2", "tio2", "TIO2", "titania"] {
         let mut args = vec!["--material", name];
@@ -469,7 +476,7 @@ fn material_lookup_is_case_insensitive() {
     assert!(outputs.iter().all(|v| *v == outputs[0]));
     // Same as the index given explicitly.
     let mut args = vec!["--n", "2.954", "--k", "0"];
-    args.extend(base);
+    args.extend(&base[2..]);
     let v = ok(&args);
     assert_eq!(v["expansion"], outputs[0]["expansion"]);
     assert_eq!(v["qext"], outputs[0]["qext"]);
@@ -483,6 +490,8 @@ fn tio2_expansion_meets_its_tolerance() {
     let v = ok(&[
         "--material",
         "TiO2",
+        "--material-source",
+        "seed",
         "--wavelength-nm",
         "550",
         "--radius-um",
@@ -497,6 +506,8 @@ fn tio2_expansion_meets_its_tolerance() {
     let v = ok(&[
         "--material",
         "TiO2",
+        "--material-source",
+        "seed",
         "--wavelength-nm",
         "550",
         "--radius-um",
@@ -556,12 +567,15 @@ fn bad_input_names_the_argument() {
         &["--material", "unobtainium"],
         true,
     );
-    // Wavelength outside the material's table (450–650 nm for TiO2).
-    for wl in ["700", "400"] {
+    // Wavelength outside the material's table (430–1530 nm for measured
+    // rutile, 450–650 nm for the seed's TiO2).
+    for (source, wl) in [("measured", "1600"), ("measured", "400"), ("seed", "700")] {
         rejects(
             &[
                 "--material",
                 "TiO2",
+                "--material-source",
+                source,
                 "--wavelength-nm",
                 wl,
                 "--radius-um",

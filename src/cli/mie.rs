@@ -73,6 +73,13 @@ pub struct MieArgs {
     /// Built-in particle material (case-insensitive, e.g. TiO2, gold, silver).
     #[arg(long, value_name = "NAME")]
     material: Option<String>,
+    /// Data of --material: `measured` (default) or `seed` (the seed's Table 2).
+    #[arg(long, value_name = "SOURCE", requires = "material")]
+    material_source: Option<String>,
+    /// Dispersive particle material from a file of rows `wavelength_nm, n, k`
+    /// (commas or spaces; `#` starts a comment), wavelengths increasing.
+    #[arg(long, value_name = "FILE", conflicts_with_all = ["material", "n", "k"])]
+    material_table: Option<std::path::PathBuf>,
     /// Particle refractive index, real part (> 0); requires --k, excludes --material.
     #[arg(long, allow_negative_numbers = true)]
     n: Option<f64>,
@@ -306,18 +313,66 @@ fn positive(flag: &str, v: f64) -> Result<(), String> {
     }
 }
 
-/// Canonical material name (if any) and particle index from `--material` or
-/// `--n`/`--k`.
+/// Rows `[wavelength_nm, n, k]` of a `--material-table` file, validated as
+/// a spec's `{"table"}` (docs/spec.md).
+fn read_material_table(path: &std::path::Path) -> Result<Vec<[f64; 3]>, String> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| format!("--material-table {}: {e}", path.display()))?;
+    let mut rows = Vec::new();
+    for (i, line) in text.lines().enumerate() {
+        let line = line.split('#').next().unwrap_or("").trim();
+        if line.is_empty() {
+            continue;
+        }
+        let v: Vec<f64> = line
+            .split(|c: char| c == ',' || c.is_whitespace())
+            .filter(|x| !x.is_empty())
+            .map(str::parse)
+            .collect::<Result<_, _>>()
+            .map_err(|e| format!("--material-table {}:{}: {e}", path.display(), i + 1))?;
+        let [w, n, k] = v[..] else {
+            return Err(format!(
+                "--material-table {}:{}: three numbers (wavelength_nm, n, k), got {}",
+                path.display(),
+                i + 1,
+                v.len()
+            ));
+        };
+        rows.push([w, n, k]);
+    }
+    crate::material::validate_material_table("--material-table", &rows)?;
+    Ok(rows)
+}
+
+/// Canonical material name (if any) and particle index from `--material`,
+/// `--material-table` or `--n`/`--k`.
 fn particle_index(
     a: &MieArgs,
     wavelength_nm: f64,
 ) -> Result<(Option<&'static str>, RefractiveIndex), String> {
+    if let Some(path) = &a.material_table {
+        let table = read_material_table(path)?;
+        let spec = crate::material::MaterialSpec::Table { table };
+        let index = spec
+            .index_at(wavelength_nm)
+            .map_err(|e| format!("--wavelength-nm: {e}"))?;
+        return Ok((None, index));
+    }
     match (&a.material, a.n, a.k) {
         (Some(_), Some(_), _) | (Some(_), _, Some(_)) => {
             Err("--material conflicts with --n/--k: give one of them".into())
         }
         (Some(name), None, None) => {
-            let mat = materials::find(name).map_err(|e| format!("--material: {e}"))?;
+            let mat = match a.material_source.as_deref() {
+                None | Some("measured") => materials::find(name),
+                Some("seed") => materials::find_seed(name),
+                Some(other) => {
+                    return Err(format!(
+                        "--material-source = {other}: must be measured or seed"
+                    ));
+                }
+            }
+            .map_err(|e| format!("--material: {e}"))?;
             let index = mat
                 .index_at(wavelength_nm)
                 .map_err(|e| format!("--wavelength-nm: {e}"))?;

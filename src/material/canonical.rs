@@ -56,11 +56,25 @@ fn unsigned_zero(x: f64) -> f64 {
     if x == 0.0 { 0.0 } else { x }
 }
 
+/// Names become canonical names; `{"name", "source": "measured"}` (or no
+/// source) is the plain name; the seed's data keep `"source": "seed"`; a
+/// table and an index are written as given.
 fn canonical_material(m: &mut MaterialSpec) {
-    if let MaterialSpec::Name(name) = m
-        && let Ok(found) = materials::find(name)
-    {
-        *name = found.name.to_string();
+    match m {
+        MaterialSpec::Name(name) => {
+            if let Ok(found) = materials::find(name) {
+                *name = found.name.to_string();
+            }
+        }
+        MaterialSpec::Named { name, source } => {
+            if let Ok(found) = materials::find(name) {
+                *name = found.name.to_string();
+            }
+            if source.as_deref() != Some("seed") {
+                *m = MaterialSpec::Name(name.clone());
+            }
+        }
+        MaterialSpec::Index { .. } | MaterialSpec::Table { .. } => {}
     }
 }
 

@@ -25,4 +25,4 @@ pub use schema::{
     BaseSpec, DEFAULT_STREAMS, ExpansionSpec, LayerSpec, MaterialSpec, MieSpec, SCATTERERS,
     ScattererSpec, SizeDistributionSpec, SolverSpec, Spec, SpecError, ThicknessSpec,
 };
-pub use validate::{MAX_STREAMS, validate};
+pub use validate::{MAX_STREAMS, MAX_TABLE_ROWS, validate, validate_material_table};

@@ -26,9 +26,10 @@ pub fn parse(text: &str) -> Result<Spec, SpecError> {
     Ok(spec)
 }
 
-/// The spec's arrays: `layers`, `wavelengths_nm`, the Greek coefficients
-/// and a list of incident angles (`needs.theta_i_deg`).
-const ARRAYS: [&str; 9] = [
+/// The spec's arrays: `layers`, `wavelengths_nm`, the Greek coefficients,
+/// a list of incident angles (`needs.theta_i_deg`) and a material table
+/// with its `[wavelength_nm, n, k]` rows.
+const ARRAYS: [&str; 13] = [
     "layers",
     "wavelengths_nm",
     "needs.theta_i_deg",
@@ -38,6 +39,10 @@ const ARRAYS: [&str; 9] = [
     "layers[].scatterer.expansion.delta",
     "layers[].scatterer.expansion.gamma",
     "layers[].scatterer.expansion.epsilon",
+    "layers[].scatterer.mie.material.table",
+    "layers[].scatterer.mie.material.table[]",
+    "base.fresnel.material.table",
+    "base.fresnel.material.table[]",
 ];
 
 /// serde reads a struct written as an array of its fields in order

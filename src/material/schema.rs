@@ -98,19 +98,84 @@ pub enum ScattererSpec {
 /// The keys of a `scatterer` object, one of which it must have.
 pub const SCATTERERS: [&str; 4] = ["mie", "expansion", "rayleigh", "henyey_greenstein"];
 
-/// A material given by name or by index.
+/// A material given by name, by index or by a table (docs/spec.md).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(untagged)]
 pub enum MaterialSpec {
-    /// Built-in material (`physics::materials`).
+    /// Built-in material (`physics::materials`): its measured table.
     Name(String),
-    /// Explicit complex index `n + i k`.
+    /// Explicit complex index `n + i k`, the same at every wavelength.
     Index {
         /// Real part.
         n: f64,
         /// Imaginary part (≥ 0 absorbs).
         k: f64,
     },
+    /// Built-in material with a choice of data: `"source": "seed"` is the
+    /// seed's Table 2 (`physics::materials::find_seed`), `"measured"` (the
+    /// default) the same as the plain name.
+    Named {
+        /// Material name or alias.
+        name: String,
+        /// `"measured"` or `"seed"`.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        source: Option<String>,
+    },
+    /// A dispersive material: rows `[wavelength_nm, n, k]`, wavelengths
+    /// strictly increasing, interpolated as a measured table.
+    Table {
+        /// The rows.
+        table: Vec<[f64; 3]>,
+    },
+}
+
+/// The data a [`MaterialSpec::Named`] asks for.
+pub const MATERIAL_SOURCES: [&str; 2] = ["measured", "seed"];
+
+impl MaterialSpec {
+    /// Whether the index is the same at every wavelength (an explicit
+    /// `{n, k}`): the others need the spec's wavelengths.
+    pub fn is_constant(&self) -> bool {
+        matches!(self, MaterialSpec::Index { .. })
+    }
+
+    /// The complex index at `wavelength_nm` (vacuum).
+    ///
+    /// # Errors
+    /// An unknown name or source, or a wavelength outside the data
+    /// (`PhysicsError::OutOfRange` naming the range).
+    pub fn index_at(
+        &self,
+        wavelength_nm: f64,
+    ) -> Result<crate::physics::RefractiveIndex, crate::physics::PhysicsError> {
+        use crate::physics::{RefractiveIndex, materials};
+        match self {
+            MaterialSpec::Index { n, k } => Ok(RefractiveIndex::new(*n, *k)),
+            MaterialSpec::Name(name) => materials::refractive_index(name, wavelength_nm),
+            MaterialSpec::Named { name, source } => match source.as_deref() {
+                None | Some("measured") => materials::refractive_index(name, wavelength_nm),
+                Some("seed") => materials::find_seed(name)?.index_at(wavelength_nm),
+                Some(other) => Err(crate::physics::PhysicsError::Invalid(format!(
+                    "source '{other}' is not one of {}",
+                    MATERIAL_SOURCES.join(", ")
+                ))),
+            },
+            MaterialSpec::Table { table } => materials::table_index(table, wavelength_nm),
+        }
+    }
+
+    /// A short label for plots and messages.
+    pub fn label(&self) -> String {
+        match self {
+            MaterialSpec::Name(n) => n.clone(),
+            MaterialSpec::Index { n, k } => format!("n = {n} + {k}i"),
+            MaterialSpec::Named { name, source } => match source.as_deref() {
+                Some("seed") => format!("{name} (seed)"),
+                _ => name.clone(),
+            },
+            MaterialSpec::Table { table } => format!("table of {} rows", table.len()),
+        }
+    }
 }
 
 /// Mie spheres in a binder.

@@ -107,7 +107,7 @@ fn finite_in(path: &str, v: f64, lo: f64, hi: f64, what: &str) -> Result<(), Spe
 }
 
 fn needs_wavelength(spec: &Spec) -> bool {
-    let named = |m: &MaterialSpec| matches!(m, MaterialSpec::Name(_));
+    let named = |m: &MaterialSpec| !m.is_constant();
     spec.layers
         .iter()
         .any(|l| matches!(l.scatterer, ScattererSpec::Mie(_)))
@@ -326,25 +326,81 @@ pub fn validate(spec: &Spec) -> Result<(), SpecError> {
     spec.needs.validate(tolerance, spec.solver.polarized)
 }
 
+/// Most rows a material table may have.
+pub const MAX_TABLE_ROWS: usize = 10_000;
+
 fn validate_material(path: &str, m: &MaterialSpec) -> Result<(), SpecError> {
+    let known_name = |path: &str, name: &str| -> Result<(), SpecError> {
+        materials::find(name).map(|_| ()).map_err(|_| {
+            SpecError::new(
+                path,
+                format!(
+                    "unknown material '{name}' (known: {})",
+                    materials::known_materials().join(", ")
+                ),
+            )
+        })
+    };
     match m {
-        MaterialSpec::Name(name) => {
-            if materials::find(name).is_err() {
-                return Err(SpecError::new(
-                    path,
+        MaterialSpec::Name(name) => known_name(path, name),
+        MaterialSpec::Named { name, source } => {
+            known_name(&format!("{path}.name"), name)?;
+            match source.as_deref() {
+                None | Some("measured") => Ok(()),
+                Some("seed") => materials::find_seed(name)
+                    .map(|_| ())
+                    .map_err(|e| SpecError::new(format!("{path}.source"), e.to_string())),
+                Some(other) => Err(SpecError::new(
+                    format!("{path}.source"),
                     format!(
-                        "unknown material '{name}' (known: {})",
-                        materials::known_materials().join(", ")
+                        "'{other}' is not a material source (one of: {})",
+                        super::schema::MATERIAL_SOURCES.join(", ")
                     ),
-                ));
+                )),
             }
-            Ok(())
         }
         MaterialSpec::Index { n, k } => {
             finite_in(&format!("{path}.n"), *n, 1e-6, 100.0, R_N)?;
             finite_in(&format!("{path}.k"), *k, 0.0, 100.0, R_K)
         }
+        MaterialSpec::Table { table } => validate_table(&format!("{path}.table"), table),
     }
+}
+
+/// The rows of a `{"table"}` material (docs/spec.md), errors naming
+/// `q[i][j]`.
+fn validate_table(q: &str, table: &[[f64; 3]]) -> Result<(), SpecError> {
+    if table.is_empty() || table.len() > MAX_TABLE_ROWS {
+        return Err(SpecError::new(
+            q,
+            format!(
+                "{} rows: a table has 1 to {MAX_TABLE_ROWS} rows [wavelength_nm, n, k]",
+                table.len()
+            ),
+        ));
+    }
+    for (i, row) in table.iter().enumerate() {
+        finite_in(&format!("{q}[{i}][0]"), row[0], 1.0, 1e6, "[1, 1e6] nm")?;
+        finite_in(&format!("{q}[{i}][1]"), row[1], 1e-6, 100.0, R_N)?;
+        finite_in(&format!("{q}[{i}][2]"), row[2], 0.0, 100.0, R_K)?;
+        if i > 0 && row[0] <= table[i - 1][0] {
+            return Err(SpecError::new(
+                format!("{q}[{i}][0]"),
+                format!(
+                    "wavelengths must increase strictly: {} nm follows {} nm",
+                    row[0],
+                    table[i - 1][0]
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// [`validate_table`] for a table read elsewhere (the CLI's
+/// `--material-table`): the message names `what` and the row.
+pub fn validate_material_table(what: &str, table: &[[f64; 3]]) -> Result<(), String> {
+    validate_table("table", table).map_err(|e| format!("{what}: {}: {}", e.path, e.message))
 }
 
 /// `radius_min_um` / `radius_max_um` of a size distribution: both or

@@ -9,7 +9,7 @@ use crate::material::{
     BaseSpec, DEFAULT_STREAMS, MaterialSpec, ScattererSpec, Spec, SpecError, ThicknessSpec,
 };
 use crate::physics::expansion::GreekCoefficients;
-use crate::physics::{RefractiveIndex, fresnel, materials};
+use crate::physics::{RefractiveIndex, fresnel};
 use crate::solver::{self, Base, Layer, Problem, Settings, Thickness};
 use std::sync::Arc;
 
@@ -18,14 +18,18 @@ pub(super) fn resolve_index(
     m: &MaterialSpec,
     wavelength_nm: Option<f64>,
 ) -> Result<RefractiveIndex, SpecError> {
-    match m {
-        MaterialSpec::Index { n, k } => Ok(RefractiveIndex::new(*n, *k)),
-        MaterialSpec::Name(name) => {
-            let wl = wavelength_nm
-                .ok_or_else(|| SpecError::new("wavelengths_nm", "required for named materials"))?;
-            materials::refractive_index(name, wl).map_err(|e| SpecError::new(path, e.to_string()))
+    let wl = match (m.is_constant(), wavelength_nm) {
+        (true, _) => f64::NAN,
+        (false, Some(wl)) => wl,
+        (false, None) => {
+            return Err(SpecError::new(
+                "wavelengths_nm",
+                "required for named and tabulated materials",
+            ));
         }
-    }
+    };
+    m.index_at(wl)
+        .map_err(|e| SpecError::new(path, e.to_string()))
 }
 
 /// Zero-pad a coefficient array to `len`.
@@ -232,5 +236,75 @@ mod tests {
         let settings = |s: &Spec| problem(s, Some(550.0)).unwrap().settings;
         assert!(settings(&on).secondary_scattering);
         assert!(!settings(&off).secondary_scattering);
+    }
+
+    fn mie_spec(material: &str, base: &str) -> Result<Spec, SpecError> {
+        parse(&format!(
+            r#"{{"wavelengths_nm":[550],"layers":[{{"optical_thickness":1,"scatterer":{{"mie":{{"material":{material},"radius_um":0.2}}}}}}],"base":{base}}}"#
+        ))
+    }
+
+    fn layer(spec: &Spec) -> Layer {
+        problem(spec, Some(550.0)).unwrap().layers[0].clone()
+    }
+
+    /// The four material forms (docs/spec.md "Materials"): a plain name is
+    /// the measured table, `"source": "measured"` the same (and the same
+    /// canonical form), `"source": "seed"` the seed's Table 2 (its own
+    /// canonical form), a table that is constant equals the `{n, k}` it
+    /// repeats, and a table equal to a built-in's rows equals the built-in.
+    #[test]
+    fn material_forms_lower_to_their_indices() {
+        let plain = mie_spec(r#""TiO2""#, r#""black""#).unwrap();
+        let measured = mie_spec(r#"{"name":"rutile","source":"measured"}"#, r#""black""#).unwrap();
+        let seed = mie_spec(r#"{"name":"titania","source":"seed"}"#, r#""black""#).unwrap();
+        assert_eq!(canonical_json(&plain), canonical_json(&measured));
+        assert_ne!(canonical_json(&plain), canonical_json(&seed));
+        assert!(canonical_json(&seed).contains(r#""material":{"name":"TiO2","source":"seed"}"#));
+        assert_eq!(layer(&plain).coef, layer(&measured).coef);
+        let seed_index = mie_spec(r#"{"n":2.954,"k":0.0}"#, r#""black""#).unwrap();
+        assert_eq!(layer(&seed).coef, layer(&seed_index).coef);
+        assert_ne!(layer(&plain).coef, layer(&seed).coef);
+        let table = mie_spec(r#"{"table":[[500,2.954,0],[600,2.954,0]]}"#, r#""black""#).unwrap();
+        assert_eq!(layer(&table).coef, layer(&seed_index).coef);
+        let rows = crate::physics::materials::find("TiO2").unwrap().table;
+        let as_table = serde_json::json!({ "table": rows }).to_string();
+        let tab = mie_spec(&as_table, r#""black""#).unwrap();
+        assert_eq!(layer(&tab).coef, layer(&plain).coef);
+        // A Fresnel base takes the same forms.
+        let silver = mie_spec(
+            r#""TiO2""#,
+            r#"{"fresnel":{"material":{"name":"Ag","source":"seed"}}}"#,
+        );
+        assert!(canonical_json(&silver.unwrap()).contains(r#"{"name":"silver","source":"seed"}"#));
+    }
+
+    /// Bad material inputs are refused with the path of the bad value.
+    #[test]
+    fn bad_materials_name_their_path() {
+        let err = |m: &str| mie_spec(m, r#""black""#).unwrap_err();
+        let q = "layers[0].scatterer.mie.material";
+        for (m, path) in [
+            (
+                r#"{"name":"chromium","source":"seed"}"#,
+                format!("{q}.source"),
+            ),
+            (r#"{"name":"TiO2","source":"guess"}"#, format!("{q}.source")),
+            (r#"{"name":"unobtainium"}"#, format!("{q}.name")),
+            (r#"{"table":[]}"#, format!("{q}.table")),
+            (
+                r#"{"table":[[500,1.5,0],[400,1.5,0]]}"#,
+                format!("{q}.table[1][0]"),
+            ),
+            (r#"{"table":[[500,1.5,-0.1]]}"#, format!("{q}.table[0][2]")),
+            (r#"{"table":[[500,0,0]]}"#, format!("{q}.table[0][1]")),
+        ] {
+            assert_eq!(err(m).path, path, "{m}");
+        }
+        // A table that does not cover the wavelength is refused before solving.
+        let s = mie_spec(r#"{"table":[[600,1.5,0],[700,1.6,0]]}"#, r#""black""#).unwrap();
+        let e = crate::plan::check_solvable(&s, crate::material::MAX_STREAMS).unwrap_err();
+        assert!(e.path.starts_with("wavelengths_nm"), "{e:?}");
+        assert!(e.message.contains("[600, 700] nm"), "{e:?}");
     }
 }

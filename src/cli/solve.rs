@@ -208,6 +208,9 @@ pub fn run(a: &SolveArgs) -> Result<Value, String> {
     // (docs/spec.md).
     check_stream_cap(&spec, a.max_streams).map_err(|e| format!("{spec_path}: {e}"))?;
     plan::check_solvable(&spec, a.max_streams).map_err(|e| format!("{spec_path}: {e}"))?;
+    for (p, message) in plan::film_warnings(&spec) {
+        eprintln!("warning: {spec_path}: {p}: {message}");
+    }
     let points = a.points.as_deref().map(read_points).transpose()?;
     let field = a.field.as_deref().map(read_field).transpose()?;
 

@@ -212,13 +212,13 @@ pub fn check_limits(spec: &Spec, limits: &super::config::Limits) -> Result<(), A
     }
     let x = crate::plan::max_size_parameter(spec);
     if x > limits.max_size_parameter {
-        let i = spec
-            .layers
-            .iter()
-            .position(|l| matches!(l.scatterer, ScattererSpec::Mie(_)))
-            .unwrap_or(0);
+        let path = (spec.layers.iter().enumerate())
+            .flat_map(|(i, l)| crate::plan::populations(i, l))
+            .map(|(path, _)| path)
+            .next()
+            .unwrap_or_else(|| "layers[0]".into());
         return Err(over(
-            format!("layers[{i}].scatterer.mie"),
+            path,
             format!(
                 "the Mie size parameter 2π r n_host/λ reaches {x:.1} (largest radius at the shortest wavelength), over this service's limit {} (--max-size-parameter)",
                 limits.max_size_parameter
@@ -226,7 +226,7 @@ pub fn check_limits(spec: &Spec, limits: &super::config::Limits) -> Result<(), A
         ));
     }
     for (i, layer) in spec.layers.iter().enumerate() {
-        if let ScattererSpec::Expansion(e) = &layer.scatterer {
+        if let Some(ScattererSpec::Expansion(e)) = layer.optical_scatterer() {
             for (name, v) in [
                 ("beta", &e.beta),
                 ("alpha", &e.alpha),

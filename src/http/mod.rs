@@ -22,6 +22,7 @@ pub mod error;
 pub mod eval;
 pub mod needs_doc;
 pub mod ops;
+pub mod optics;
 pub mod problem;
 pub mod results;
 pub mod scenes;
@@ -105,6 +106,7 @@ pub fn routes() -> OpenApiRouter<AppState> {
         .routes(api!(brdfs::get_brdf, brdfs::delete_brdf))
         .routes(api!(brdfs::get_table))
         .routes(api!(scenes::create_scene))
+        .routes(api!(optics::post_optics))
         .routes(api!(eval::get_eval, eval::post_eval))
         .routes(api!(ops::healthz))
         .routes(api!(ops::readyz))

@@ -17,7 +17,9 @@
 //!    and every number in serde_json's shortest round-trip form (`1.0`,
 //!    `1e-6`, `0.973527`; integers such as `streams` without a fraction).
 
-use super::{BaseSpec, DEFAULT_STREAMS, ExpansionSpec, MaterialSpec, ScattererSpec, Spec};
+use super::{
+    BaseSpec, DEFAULT_STREAMS, ExpansionSpec, HostSpec, MaterialSpec, ScattererSpec, Spec,
+};
 use crate::physics::materials;
 use serde_json::Value;
 
@@ -27,18 +29,32 @@ use serde_json::Value;
 pub fn normalized(spec: &Spec) -> Spec {
     let mut s = spec.clone();
     for layer in &mut s.layers {
-        if let super::ThicknessSpec::Number(t) = &mut layer.optical_thickness {
+        if let Some(super::ThicknessSpec::Number(t)) = &mut layer.optical_thickness {
             *t = unsigned_zero(*t);
         }
         match &mut layer.scatterer {
-            ScattererSpec::Mie(m) => canonical_material(&mut m.material),
-            ScattererSpec::Expansion(e) => trim_expansion(e),
-            ScattererSpec::Rayleigh { .. } | ScattererSpec::HenyeyGreenstein { .. } => {}
+            Some(ScattererSpec::Mie(m)) => {
+                canonical_material(&mut m.material);
+                canonical_host(&mut m.host_index);
+            }
+            Some(ScattererSpec::Expansion(e)) => trim_expansion(e),
+            Some(ScattererSpec::Rayleigh { .. } | ScattererSpec::HenyeyGreenstein { .. })
+            | None => {}
+        }
+        if let Some(pigments) = &mut layer.pigments {
+            for p in pigments {
+                canonical_material(&mut p.material);
+            }
+            canonical_host(layer.binder.get_or_insert_with(HostSpec::default));
         }
     }
-    let last_host = match s.layers.last().map(|l| &l.scatterer) {
-        Some(ScattererSpec::Mie(m)) => m.host_index,
-        _ => 1.0,
+    // The Fresnel base's ambient index defaults to the host of the last
+    // layer's particles: written when it is one number, else left to the
+    // lowering (a dispersive binder's real part at each wavelength).
+    let last_host = match s.layers.last().and_then(|l| l.host()) {
+        Some(HostSpec::Index(n)) => Some(*n),
+        Some(HostSpec::Material(_)) => None,
+        None => Some(1.0),
     };
     if let BaseSpec::Fresnel {
         material,
@@ -46,7 +62,9 @@ pub fn normalized(spec: &Spec) -> Spec {
     } = &mut s.base
     {
         canonical_material(material);
-        ambient_index.get_or_insert(last_host);
+        if let Some(n) = last_host {
+            ambient_index.get_or_insert(n);
+        }
     }
     s.needs = s.needs.normalized();
     s
@@ -75,6 +93,17 @@ fn canonical_material(m: &mut MaterialSpec) {
             }
         }
         MaterialSpec::Index { .. } | MaterialSpec::Table { .. } => {}
+    }
+}
+
+/// A host given as a material is canonical as that material; a real index
+/// stays a number (`{"n": 1.5, "k": 0}` and `1.5` are different bytes but
+/// the same computation, so the `{n, k = 0}` form is written as the number).
+fn canonical_host(h: &mut HostSpec) {
+    match h {
+        HostSpec::Index(_) => {}
+        HostSpec::Material(MaterialSpec::Index { n, k }) if *k == 0.0 => *h = HostSpec::Index(*n),
+        HostSpec::Material(m) => canonical_material(m),
     }
 }
 

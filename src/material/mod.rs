@@ -22,7 +22,8 @@ mod validate;
 
 pub use parse::{from_json_slice, from_json_str, parse};
 pub use schema::{
-    BaseSpec, DEFAULT_STREAMS, ExpansionSpec, LayerSpec, MaterialSpec, MieSpec, SCATTERERS,
-    ScattererSpec, SizeDistributionSpec, SolverSpec, Spec, SpecError, ThicknessSpec,
+    BaseSpec, DEFAULT_BINDER, DEFAULT_STREAMS, ExpansionSpec, FILM_KEYS, HostSpec, LayerForm,
+    LayerSpec, MaterialSpec, MieSpec, OPTICAL_KEYS, PigmentSpec, SCATTERERS, ScattererSpec,
+    SizeDistributionSpec, SolverSpec, Spec, SpecError, ThicknessSpec,
 };
 pub use validate::{MAX_STREAMS, MAX_TABLE_ROWS, validate, validate_material_table};

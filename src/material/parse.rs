@@ -27,9 +27,10 @@ pub fn parse(text: &str) -> Result<Spec, SpecError> {
 }
 
 /// The spec's arrays: `layers`, `wavelengths_nm`, the Greek coefficients,
-/// a list of incident angles (`needs.theta_i_deg`) and a material table
-/// with its `[wavelength_nm, n, k]` rows.
-const ARRAYS: [&str; 13] = [
+/// a list of incident angles (`needs.theta_i_deg`), a film's `pigments`
+/// and a material table (of a particle, a host, a binder or the base) with
+/// its `[wavelength_nm, n, k]` rows.
+const ARRAYS: [&str; 20] = [
     "layers",
     "wavelengths_nm",
     "needs.theta_i_deg",
@@ -43,6 +44,13 @@ const ARRAYS: [&str; 13] = [
     "layers[].scatterer.mie.material.table[]",
     "base.fresnel.material.table",
     "base.fresnel.material.table[]",
+    "layers[].scatterer.mie.host_index.table",
+    "layers[].scatterer.mie.host_index.table[]",
+    "layers[].pigments",
+    "layers[].pigments[].material.table",
+    "layers[].pigments[].material.table[]",
+    "layers[].binder.table",
+    "layers[].binder.table[]",
 ];
 
 /// serde reads a struct written as an array of its fields in order
@@ -407,10 +415,10 @@ mod tests {
         let s = parse(&format!(r#"{{"layers":[{RAYLEIGH}]}}"#)).unwrap();
         assert_eq!(
             s.layers[0].scatterer,
-            ScattererSpec::Rayleigh {
+            Some(ScattererSpec::Rayleigh {
                 albedo: 1.0,
                 depolarization: 0.0
-            }
+            })
         );
     }
 

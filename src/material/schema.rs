@@ -48,14 +48,221 @@ pub struct Spec {
     pub needs: super::needs::Needs,
 }
 
-/// One homogeneous layer.
+/// One homogeneous layer, in one of two forms (docs/spec.md, Layers):
+/// optical (`optical_thickness` and one `scatterer`) or a paint film
+/// (`thickness_um`, `pigments` and a `binder`), whose optical thickness,
+/// albedo and mixed phase matrix follow per wavelength from the pigments'
+/// volume fractions (`crate::plan`). [`LayerSpec::form`] says which.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct LayerSpec {
-    /// A number ≥ 0 or the string `"infinite"` (last layer only).
-    pub optical_thickness: ThicknessSpec,
-    /// What scatters in the layer.
-    pub scatterer: ScattererSpec,
+    /// Optical form: a number ≥ 0 or the string `"infinite"` (last layer only).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub optical_thickness: Option<ThicknessSpec>,
+    /// Optical form: what scatters in the layer.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub scatterer: Option<ScattererSpec>,
+    /// Film form: the film's geometric thickness in µm.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub thickness_um: Option<f64>,
+    /// Film form: the pigment populations, mixed in the one film.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pigments: Option<Vec<PigmentSpec>>,
+    /// Film form: the medium between the pigments (default 1, air).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub binder: Option<HostSpec>,
+}
+
+/// The two forms of a [`LayerSpec`], borrowed from it.
+#[derive(Clone, Copy, Debug)]
+pub enum LayerForm<'a> {
+    /// Optical thickness and one scatterer.
+    Optical {
+        /// `optical_thickness`.
+        thickness: &'a ThicknessSpec,
+        /// `scatterer`.
+        scatterer: &'a ScattererSpec,
+    },
+    /// A paint film.
+    Film {
+        /// `thickness_um`.
+        thickness_um: f64,
+        /// `pigments` (at least one).
+        pigments: &'a [PigmentSpec],
+        /// `binder`, or its default.
+        binder: &'a HostSpec,
+    },
+}
+
+/// The binder of a film without one: air.
+pub static DEFAULT_BINDER: HostSpec = HostSpec::Index(1.0);
+
+/// The keys of the optical form and of the film form of a layer.
+pub const OPTICAL_KEYS: [&str; 2] = ["optical_thickness", "scatterer"];
+/// See [`OPTICAL_KEYS`].
+pub const FILM_KEYS: [&str; 3] = ["thickness_um", "pigments", "binder"];
+
+impl LayerSpec {
+    /// An optical layer.
+    pub fn optical(thickness: ThicknessSpec, scatterer: ScattererSpec) -> Self {
+        Self {
+            optical_thickness: Some(thickness),
+            scatterer: Some(scatterer),
+            thickness_um: None,
+            pigments: None,
+            binder: None,
+        }
+    }
+
+    /// Which form the layer is written in; the error (a field name and a
+    /// message) when it mixes the two or misses a field of its form.
+    pub fn form(&self) -> Result<LayerForm<'_>, (&'static str, String)> {
+        let film = self.thickness_um.is_some() || self.pigments.is_some() || self.binder.is_some();
+        let optical = self.optical_thickness.is_some() || self.scatterer.is_some();
+        let forms = || {
+            format!(
+                "a layer is either {{{}}} or {{{}}}",
+                OPTICAL_KEYS.join(", "),
+                FILM_KEYS.join(", ")
+            )
+        };
+        match (optical, film) {
+            (true, true) => Err(("", format!("{}, not both", forms()))),
+            (false, false) => Err(("", forms())),
+            (true, false) => match (&self.optical_thickness, &self.scatterer) {
+                (Some(thickness), Some(scatterer)) => Ok(LayerForm::Optical {
+                    thickness,
+                    scatterer,
+                }),
+                (None, _) => Err(("optical_thickness", "missing field".into())),
+                (_, None) => Err(("scatterer", "missing field".into())),
+            },
+            (false, true) => match (self.thickness_um, &self.pigments) {
+                (Some(thickness_um), Some(pigments)) => Ok(LayerForm::Film {
+                    thickness_um,
+                    pigments,
+                    binder: self.binder.as_ref().unwrap_or(&DEFAULT_BINDER),
+                }),
+                (None, _) => Err(("thickness_um", "missing field".into())),
+                (_, None) => Err(("pigments", "missing field".into())),
+            },
+        }
+    }
+
+    /// [`LayerSpec::form`] of a validated spec.
+    ///
+    /// # Panics
+    /// If the layer was not validated (`material::validate`).
+    pub fn valid_form(&self) -> LayerForm<'_> {
+        self.form().expect("a validated layer has one form")
+    }
+
+    /// The scatterer of an optical layer.
+    pub fn optical_scatterer(&self) -> Option<&ScattererSpec> {
+        match self.form() {
+            Ok(LayerForm::Optical { scatterer, .. }) => Some(scatterer),
+            _ => None,
+        }
+    }
+
+    /// The medium the layer's particles sit in: a Mie scatterer's host or a
+    /// film's binder (`None` for other scatterers).
+    pub fn host(&self) -> Option<&HostSpec> {
+        match self.form() {
+            Ok(LayerForm::Optical {
+                scatterer: ScattererSpec::Mie(m),
+                ..
+            }) => Some(&m.host_index),
+            Ok(LayerForm::Film { binder, .. }) => Some(binder),
+            _ => None,
+        }
+    }
+}
+
+/// One pigment of a film: spheres of one material and size (or size
+/// distribution) making up `volume_fraction` of the film's volume.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PigmentSpec {
+    /// Particle material.
+    pub material: MaterialSpec,
+    /// Radius of monodisperse spheres (µm); exclusive with `size_distribution`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub radius_um: Option<f64>,
+    /// Size distribution; exclusive with `radius_um`.
+    #[serde(
+        default,
+        skip_serializing_if = "Option::is_none",
+        deserialize_with = "crate::material::parse::some_one_key"
+    )]
+    pub size_distribution: Option<SizeDistributionSpec>,
+    /// Share of the film's volume the particles fill, in (0, 1); the sum over
+    /// a film's pigments is its pigment volume concentration (PVC).
+    pub volume_fraction: f64,
+}
+
+impl PigmentSpec {
+    /// The pigment's spheres as a Mie population in `binder`.
+    pub fn in_binder(&self, binder: &HostSpec) -> MieSpec {
+        MieSpec {
+            material: self.material.clone(),
+            radius_um: self.radius_um,
+            size_distribution: self.size_distribution.clone(),
+            host_index: binder.clone(),
+        }
+    }
+}
+
+/// The medium around particles (`host_index` of a Mie scatterer, `binder`
+/// of a film): a real index, or a material in any [`MaterialSpec`] form (a
+/// built-in name such as `"acrylic"` or `"water"`, `{name, source}`,
+/// `{n, k}`, a table). Mie theory sees its real part; a film's binder also
+/// absorbs with its imaginary part (docs/spec.md, Absorbing binders).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum HostSpec {
+    /// A real index ≥ 1, the same at every wavelength.
+    Index(f64),
+    /// A material.
+    Material(MaterialSpec),
+}
+
+impl HostSpec {
+    /// Whether the index is the same at every wavelength.
+    pub fn is_constant(&self) -> bool {
+        match self {
+            HostSpec::Index(_) => true,
+            HostSpec::Material(m) => m.is_constant(),
+        }
+    }
+
+    /// The complex index at `wavelength_nm` (ignored when constant).
+    ///
+    /// # Errors
+    /// As [`MaterialSpec::index_at`].
+    pub fn index_at(
+        &self,
+        wavelength_nm: f64,
+    ) -> Result<crate::physics::RefractiveIndex, crate::physics::PhysicsError> {
+        match self {
+            HostSpec::Index(n) => Ok(crate::physics::RefractiveIndex::new(*n, 0.0)),
+            HostSpec::Material(m) => m.index_at(wavelength_nm),
+        }
+    }
+
+    /// A short label for plots and messages.
+    pub fn label(&self) -> String {
+        match self {
+            HostSpec::Index(n) => format!("{n}"),
+            HostSpec::Material(m) => m.label(),
+        }
+    }
+}
+
+impl Default for HostSpec {
+    fn default() -> Self {
+        DEFAULT_BINDER.clone()
+    }
 }
 
 /// Optical thickness as written in JSON.
@@ -194,13 +401,10 @@ pub struct MieSpec {
         deserialize_with = "crate::material::parse::some_one_key"
     )]
     pub size_distribution: Option<SizeDistributionSpec>,
-    /// Real refractive index of the binder (≥ 1).
-    #[serde(default = "one")]
-    pub host_index: f64,
-}
-
-fn one() -> f64 {
-    1.0
+    /// The binder: a real index ≥ 1 (default 1) or a material
+    /// ([`HostSpec`]); Mie theory sees its real part.
+    #[serde(default)]
+    pub host_index: HostSpec,
 }
 
 /// Particle size distributions.

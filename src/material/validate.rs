@@ -4,7 +4,8 @@
 //! parse at a numeric field.
 
 use super::{
-    BaseSpec, MaterialSpec, ScattererSpec, SizeDistributionSpec, Spec, SpecError, ThicknessSpec,
+    BaseSpec, HostSpec, LayerForm, MaterialSpec, PigmentSpec, ScattererSpec, SizeDistributionSpec,
+    Spec, SpecError, ThicknessSpec,
 };
 use crate::physics::materials;
 
@@ -27,6 +28,8 @@ const R_WAVELENGTH: &str = "[100, 100000] nm";
 const R_STREAMS: &str = "[1, 512] (integer)";
 const R_TOLERANCE: &str = "[1e-10, 0.5]";
 const R_COEFFICIENT: &str = "finite numbers with |x| ≤ 1e6";
+const R_FILM_THICKNESS: &str = "[1e-6, 1e6] µm";
+const R_VOLUME_FRACTION: &str = "(0, 1)";
 
 /// A JSON path with its array indices left out: `layers[3].scatterer` →
 /// `layers[].scatterer`.
@@ -62,8 +65,16 @@ fn allowed_range(path: &str) -> Option<&'static str> {
         "solver.tolerance" => R_TOLERANCE,
         "base.lambertian.albedo" => R_UNIT,
         "base.fresnel.ambient_index" => R_INDEX_REAL,
-        _ if tail(".mie.host_index") => R_INDEX_REAL,
-        _ if tail(".mie.radius_um") || tail(".r_g_um") || tail(".r_eff_um") => R_RADIUS,
+        _ if tail(".mie.host_index") || tail("].binder") => R_INDEX_REAL,
+        "layers[].thickness_um" => R_FILM_THICKNESS,
+        _ if tail(".volume_fraction") => R_VOLUME_FRACTION,
+        _ if tail(".mie.radius_um")
+            || tail("].radius_um")
+            || tail(".r_g_um")
+            || tail(".r_eff_um") =>
+        {
+            R_RADIUS
+        }
         _ if tail(".sigma_g") => R_SIGMA_G,
         _ if tail(".v_eff") => R_V_EFF,
         _ if tail("material.n") => R_N,
@@ -108,10 +119,9 @@ fn finite_in(path: &str, v: f64, lo: f64, hi: f64, what: &str) -> Result<(), Spe
 
 fn needs_wavelength(spec: &Spec) -> bool {
     let named = |m: &MaterialSpec| !m.is_constant();
-    spec.layers
-        .iter()
-        .any(|l| matches!(l.scatterer, ScattererSpec::Mie(_)))
-        || matches!(&spec.base, BaseSpec::Fresnel { material, .. } if named(material))
+    spec.layers.iter().any(|l| {
+        matches!(l.optical_scatterer(), Some(ScattererSpec::Mie(_))) || l.pigments.is_some()
+    }) || matches!(&spec.base, BaseSpec::Fresnel { material, .. } if named(material))
 }
 
 /// Check every range; the error names the JSON path.
@@ -122,147 +132,27 @@ pub fn validate(spec: &Spec) -> Result<(), SpecError> {
     let n_layers = spec.layers.len();
     for (i, layer) in spec.layers.iter().enumerate() {
         let p = format!("layers[{i}]");
-        match &layer.optical_thickness {
-            ThicknessSpec::Number(t) => finite_in(
-                &format!("{p}.optical_thickness"),
-                *t,
-                0.0,
-                1e12,
-                R_THICKNESS,
-            )?,
-            ThicknessSpec::Word(w) => {
-                if w != "infinite" {
-                    return Err(SpecError::new(
-                        format!("{p}.optical_thickness"),
-                        format!("\"{w}\" is not allowed: give a number ≥ 0 or \"infinite\""),
-                    ));
-                }
-                if i + 1 != n_layers {
-                    return Err(SpecError::new(
-                        format!("{p}.optical_thickness"),
-                        "only the last layer may be \"infinite\"",
-                    ));
-                }
-            }
-        }
-        let sp = format!("{p}.scatterer");
-        match &layer.scatterer {
-            ScattererSpec::Mie(m) => {
-                let mp = format!("{sp}.mie");
-                validate_material(&format!("{mp}.material"), &m.material)?;
-                finite_in(
-                    &format!("{mp}.host_index"),
-                    m.host_index,
-                    1.0,
-                    10.0,
-                    R_INDEX_REAL,
-                )?;
-                match (&m.radius_um, &m.size_distribution) {
-                    (Some(r), None) => {
-                        finite_in(&format!("{mp}.radius_um"), *r, 1e-6, 1e4, R_RADIUS)?
-                    }
-                    (
-                        None,
-                        Some(
-                            d @ SizeDistributionSpec::Lognormal {
-                                r_g_um, sigma_g, ..
-                            },
-                        ),
-                    ) => {
-                        let q = format!("{mp}.size_distribution.lognormal");
-                        validate_radius_limits(&q, d)?;
-                        finite_in(&format!("{q}.r_g_um"), *r_g_um, 1e-6, 1e4, R_RADIUS)?;
-                        finite_in(&format!("{q}.sigma_g"), *sigma_g, 1.0001, 5.0, R_SIGMA_G)?;
-                    }
-                    (
-                        None,
-                        Some(
-                            d @ SizeDistributionSpec::Gamma {
-                                r_eff_um, v_eff, ..
-                            },
-                        ),
-                    ) => {
-                        let q = format!("{mp}.size_distribution.gamma");
-                        validate_radius_limits(&q, d)?;
-                        finite_in(&format!("{q}.r_eff_um"), *r_eff_um, 1e-6, 1e4, R_RADIUS)?;
-                        finite_in(&format!("{q}.v_eff"), *v_eff, 1e-4, 0.49, R_V_EFF)?;
-                    }
-                    (Some(_), Some(_)) => {
-                        return Err(SpecError::new(
-                            mp,
-                            "give either radius_um or size_distribution, not both",
-                        ));
-                    }
-                    (None, None) => {
-                        return Err(SpecError::new(
-                            mp,
-                            "missing field: radius_um or size_distribution is required",
-                        ));
-                    }
-                }
-            }
-            ScattererSpec::Expansion(e) => {
-                let ep = format!("{sp}.expansion");
-                finite_in(&format!("{ep}.albedo"), e.albedo, 0.0, 1.0, R_UNIT)?;
-                if e.beta.is_empty() {
-                    return Err(SpecError::new(
-                        format!("{ep}.beta"),
-                        "at least beta_0 = 1 is required",
-                    ));
-                }
-                if (e.beta[0] - 1.0).abs() > 1e-6 {
-                    return Err(SpecError::new(
-                        format!("{ep}.beta[0]"),
-                        format!("{} must be 1 (normalised phase function)", e.beta[0]),
-                    ));
-                }
-                for (name, v) in [
-                    ("beta", &e.beta),
-                    ("alpha", &e.alpha),
-                    ("zeta", &e.zeta),
-                    ("delta", &e.delta),
-                    ("gamma", &e.gamma),
-                    ("epsilon", &e.epsilon),
-                ] {
-                    if v.len() > 100_000 {
-                        return Err(SpecError::new(
-                            format!("{ep}.{name}"),
-                            "at most 100000 terms",
-                        ));
-                    }
-                    for (l, x) in v.iter().enumerate() {
-                        if !x.is_finite() || x.abs() > 1e6 {
-                            return Err(SpecError::new(
-                                format!("{ep}.{name}[{l}]"),
-                                format!("{x} is outside the allowed range: {R_COEFFICIENT}"),
-                            ));
-                        }
-                    }
-                }
-            }
-            ScattererSpec::Rayleigh {
-                albedo,
-                depolarization,
+        let form = layer.form().map_err(|(field, message)| {
+            let path = if field.is_empty() {
+                p.clone()
+            } else {
+                format!("{p}.{field}")
+            };
+            SpecError::new(path, message)
+        })?;
+        match form {
+            LayerForm::Optical {
+                thickness,
+                scatterer,
             } => {
-                finite_in(&format!("{sp}.rayleigh.albedo"), *albedo, 0.0, 1.0, R_UNIT)?;
-                finite_in(
-                    &format!("{sp}.rayleigh.depolarization"),
-                    *depolarization,
-                    0.0,
-                    0.99,
-                    R_DEPOLARIZATION,
-                )?;
+                validate_optical_thickness(&p, thickness, i + 1 == n_layers)?;
+                validate_scatterer(&format!("{p}.scatterer"), scatterer)?;
             }
-            ScattererSpec::HenyeyGreenstein { albedo, g } => {
-                finite_in(
-                    &format!("{sp}.henyey_greenstein.albedo"),
-                    *albedo,
-                    0.0,
-                    1.0,
-                    R_UNIT,
-                )?;
-                finite_in(&format!("{sp}.henyey_greenstein.g"), *g, -0.999, 0.999, R_G)?;
-            }
+            LayerForm::Film {
+                thickness_um,
+                pigments,
+                binder,
+            } => validate_film(&p, thickness_um, pigments, binder)?,
         }
     }
     match &spec.base {
@@ -328,6 +218,225 @@ pub fn validate(spec: &Spec) -> Result<(), SpecError> {
 
 /// Most rows a material table may have.
 pub const MAX_TABLE_ROWS: usize = 10_000;
+
+/// An optical layer's `optical_thickness` (`last`: the stack's last layer,
+/// the only one that may be infinite).
+fn validate_optical_thickness(
+    p: &str,
+    thickness: &ThicknessSpec,
+    last: bool,
+) -> Result<(), SpecError> {
+    match thickness {
+        ThicknessSpec::Number(t) => finite_in(
+            &format!("{p}.optical_thickness"),
+            *t,
+            0.0,
+            1e12,
+            R_THICKNESS,
+        )?,
+        ThicknessSpec::Word(w) => {
+            if w != "infinite" {
+                return Err(SpecError::new(
+                    format!("{p}.optical_thickness"),
+                    format!("\"{w}\" is not allowed: give a number ≥ 0 or \"infinite\""),
+                ));
+            }
+            if !last {
+                return Err(SpecError::new(
+                    format!("{p}.optical_thickness"),
+                    "only the last layer may be \"infinite\"",
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// A scatterer at JSON path `sp`.
+fn validate_scatterer(sp: &str, scatterer: &ScattererSpec) -> Result<(), SpecError> {
+    match scatterer {
+        ScattererSpec::Mie(m) => {
+            let mp = format!("{sp}.mie");
+            validate_material(&format!("{mp}.material"), &m.material)?;
+            validate_host(&format!("{mp}.host_index"), &m.host_index)?;
+            validate_particles(&mp, m.radius_um, m.size_distribution.as_ref())?;
+        }
+        ScattererSpec::Expansion(e) => {
+            let ep = format!("{sp}.expansion");
+            finite_in(&format!("{ep}.albedo"), e.albedo, 0.0, 1.0, R_UNIT)?;
+            if e.beta.is_empty() {
+                return Err(SpecError::new(
+                    format!("{ep}.beta"),
+                    "at least beta_0 = 1 is required",
+                ));
+            }
+            if (e.beta[0] - 1.0).abs() > 1e-6 {
+                return Err(SpecError::new(
+                    format!("{ep}.beta[0]"),
+                    format!("{} must be 1 (normalised phase function)", e.beta[0]),
+                ));
+            }
+            for (name, v) in [
+                ("beta", &e.beta),
+                ("alpha", &e.alpha),
+                ("zeta", &e.zeta),
+                ("delta", &e.delta),
+                ("gamma", &e.gamma),
+                ("epsilon", &e.epsilon),
+            ] {
+                if v.len() > 100_000 {
+                    return Err(SpecError::new(
+                        format!("{ep}.{name}"),
+                        "at most 100000 terms",
+                    ));
+                }
+                for (l, x) in v.iter().enumerate() {
+                    if !x.is_finite() || x.abs() > 1e6 {
+                        return Err(SpecError::new(
+                            format!("{ep}.{name}[{l}]"),
+                            format!("{x} is outside the allowed range: {R_COEFFICIENT}"),
+                        ));
+                    }
+                }
+            }
+        }
+        ScattererSpec::Rayleigh {
+            albedo,
+            depolarization,
+        } => {
+            finite_in(&format!("{sp}.rayleigh.albedo"), *albedo, 0.0, 1.0, R_UNIT)?;
+            finite_in(
+                &format!("{sp}.rayleigh.depolarization"),
+                *depolarization,
+                0.0,
+                0.99,
+                R_DEPOLARIZATION,
+            )?;
+        }
+        ScattererSpec::HenyeyGreenstein { albedo, g } => {
+            finite_in(
+                &format!("{sp}.henyey_greenstein.albedo"),
+                *albedo,
+                0.0,
+                1.0,
+                R_UNIT,
+            )?;
+            finite_in(&format!("{sp}.henyey_greenstein.g"), *g, -0.999, 0.999, R_G)?;
+        }
+    }
+    Ok(())
+}
+
+/// The size of a particle population at `mp` (a Mie scatterer or a
+/// pigment): `radius_um` or one `size_distribution`.
+fn validate_particles(
+    mp: &str,
+    radius_um: Option<f64>,
+    size_distribution: Option<&SizeDistributionSpec>,
+) -> Result<(), SpecError> {
+    match (radius_um, size_distribution) {
+        (Some(r), None) => finite_in(&format!("{mp}.radius_um"), r, 1e-6, 1e4, R_RADIUS)?,
+        (
+            None,
+            Some(
+                d @ SizeDistributionSpec::Lognormal {
+                    r_g_um, sigma_g, ..
+                },
+            ),
+        ) => {
+            let q = format!("{mp}.size_distribution.lognormal");
+            validate_radius_limits(&q, d)?;
+            finite_in(&format!("{q}.r_g_um"), *r_g_um, 1e-6, 1e4, R_RADIUS)?;
+            finite_in(&format!("{q}.sigma_g"), *sigma_g, 1.0001, 5.0, R_SIGMA_G)?;
+        }
+        (
+            None,
+            Some(
+                d @ SizeDistributionSpec::Gamma {
+                    r_eff_um, v_eff, ..
+                },
+            ),
+        ) => {
+            let q = format!("{mp}.size_distribution.gamma");
+            validate_radius_limits(&q, d)?;
+            finite_in(&format!("{q}.r_eff_um"), *r_eff_um, 1e-6, 1e4, R_RADIUS)?;
+            finite_in(&format!("{q}.v_eff"), *v_eff, 1e-4, 0.49, R_V_EFF)?;
+        }
+        (Some(_), Some(_)) => {
+            return Err(SpecError::new(
+                mp.to_string(),
+                "give either radius_um or size_distribution, not both",
+            ));
+        }
+        (None, None) => {
+            return Err(SpecError::new(
+                mp.to_string(),
+                "missing field: radius_um or size_distribution is required",
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// A host medium (`host_index`, `binder`) at `path`: a real index in
+/// [`R_INDEX_REAL`] or a material; a material's real part ≥ 1 at the spec's
+/// wavelengths is checked by `crate::plan::check_solvable`.
+fn validate_host(path: &str, host: &HostSpec) -> Result<(), SpecError> {
+    match host {
+        HostSpec::Index(n) => finite_in(path, *n, 1.0, 10.0, R_INDEX_REAL),
+        HostSpec::Material(m) => validate_material(path, m),
+    }
+}
+
+/// Most pigments one film may mix.
+pub const MAX_PIGMENTS: usize = 16;
+
+/// A paint film at layer path `p`: its thickness, each pigment (material,
+/// size, volume fraction) and the binder; the volume fractions sum to less
+/// than 1 (the binder fills the rest).
+fn validate_film(
+    p: &str,
+    thickness_um: f64,
+    pigments: &[PigmentSpec],
+    binder: &HostSpec,
+) -> Result<(), SpecError> {
+    finite_in(
+        &format!("{p}.thickness_um"),
+        thickness_um,
+        1e-6,
+        1e6,
+        R_FILM_THICKNESS,
+    )?;
+    if pigments.is_empty() || pigments.len() > MAX_PIGMENTS {
+        return Err(SpecError::new(
+            format!("{p}.pigments"),
+            format!("give between 1 and {MAX_PIGMENTS} pigments"),
+        ));
+    }
+    let mut pvc = 0.0;
+    for (j, pigment) in pigments.iter().enumerate() {
+        let q = format!("{p}.pigments[{j}]");
+        validate_material(&format!("{q}.material"), &pigment.material)?;
+        validate_particles(&q, pigment.radius_um, pigment.size_distribution.as_ref())?;
+        let f = pigment.volume_fraction;
+        if !(f.is_finite() && f > 0.0 && f < 1.0) {
+            return Err(SpecError::new(
+                format!("{q}.volume_fraction"),
+                format!("{f} is outside the allowed range {R_VOLUME_FRACTION}"),
+            ));
+        }
+        pvc += f;
+    }
+    if pvc >= 1.0 {
+        return Err(SpecError::new(
+            format!("{p}.pigments"),
+            format!(
+                "the volume fractions sum to {pvc}: the pigments must leave room for the binder (sum < 1)"
+            ),
+        ));
+    }
+    validate_host(&format!("{p}.binder"), binder)
+}
 
 fn validate_material(path: &str, m: &MaterialSpec) -> Result<(), SpecError> {
     let known_name = |path: &str, name: &str| -> Result<(), SpecError> {

@@ -448,15 +448,40 @@ mod tests {
         for wl in [430.0, 550.0, 632.8, 1000.0, 1530.0] {
             assert_index("rutile", wl, devore(wl), 0.0, 2e-6);
         }
+        // Hale & Querry (1973) water, Table 1 as printed: 0.500 µm
+        // n 1.335, k 1.00e-9; 1.000 µm n 1.327, k 2.89e-6.
+        assert_index("water", 500.0, 1.335, 1.00e-9, 0.0);
+        assert_index("water", 1000.0, 1.327, 2.89e-6, 0.0);
+        // Ghosh (1999) calcite: n² = 1 + A + B1 λ²/(λ² − C1) + B2 λ²/(λ² − C2)
+        // with his printed coefficients (Table 1), ordinary and extraordinary;
+        // the isotropic mean of the module doc.
+        let ghosh = |wl_nm: f64, [a, b1, c1, b2, c2]: [f64; 5]| {
+            let l2 = (wl_nm / 1000.0).powi(2);
+            1.0 + a + b1 * l2 / (l2 - c1) + b2 * l2 / (l2 - c2)
+        };
+        let o = [0.73358749, 0.96464345, 1.94325203e-2, 1.82831454, 120.0];
+        let e = [0.35859695, 0.82427830, 1.06689543e-2, 0.14429128, 120.0];
+        for wl in [300.0, 589.3, 1000.0, 2000.0] {
+            let mean = ((2.0 * ghosh(wl, o) + ghosh(wl, e)) / 3.0).sqrt();
+            assert_index("calcite", wl, mean, 0.0, 2e-6);
+        }
     }
 
     /// Every measured material covers the wavelengths a renderer samples,
-    /// 300–2500 nm, except the three whose public data stop short (module
-    /// doc: rutile 430–1530 nm, anatase to 827 nm, AlGaAs the seed's
-    /// 450–650 nm).
+    /// 300–2500 nm, except those whose public data stop short (module doc:
+    /// rutile 430–1530 nm, anatase to 827 nm, AlGaAs the seed's 450–650 nm,
+    /// calcite 210–2170 nm, the polymer binders from 400 nm).
     #[test]
     fn measured_materials_cover_300_to_2500_nm() {
-        let partial = ["TiO2", "TiO2 anatase", "AlGaAs"];
+        let partial = [
+            "TiO2",
+            "TiO2 anatase",
+            "AlGaAs",
+            "CaCO3",
+            "acrylic",
+            "polystyrene",
+            "polycarbonate",
+        ];
         for m in materials() {
             if partial.contains(&m.name) {
                 continue;
@@ -472,6 +497,8 @@ mod tests {
         assert_eq!(range("TiO2"), (430.0, 1530.0));
         assert_eq!(range("anatase"), (206.64, 826.56));
         assert_eq!(range("AlGaAs"), (450.0, 650.0));
+        assert_eq!(range("calcite"), (210.0, 2170.0));
+        assert_eq!(range("acrylic"), (400.0, 2608.1));
     }
 
     /// The interpolant is exact at rows, stays between the two neighbouring
@@ -575,6 +602,10 @@ mod tests {
             ("Cu", "copper"),
             ("zinc oxide", "ZnO"),
             ("fused silica", "SiO2"),
+            ("calcite", "CaCO3"),
+            ("PMMA", "acrylic"),
+            ("H2O", "water"),
+            ("soot", "carbon black"),
         ];
         for (q, canon) in cases {
             assert_eq!(find(q).unwrap().name, canon, "{q}");
@@ -592,6 +623,12 @@ mod tests {
                 "copper",
                 "ZnO",
                 "SiO2",
+                "CaCO3",
+                "carbon black",
+                "acrylic",
+                "polystyrene",
+                "polycarbonate",
+                "water",
                 "AlGaAs"
             ]
         );

@@ -264,6 +264,14 @@ pub struct MieOptics {
     /// Truncation tolerance used (the requested one, or the default of
     /// [`expand_polynomial`]).
     pub tolerance: f64,
+    /// Mean extinction cross section per particle, µm² (`Q_ext π r²` for one
+    /// sphere, `psd::BulkOptics::c_ext_um2` for a distribution).
+    pub c_ext_um2: f64,
+    /// Mean particle volume, µm³, over the same radii and normalisation as
+    /// `c_ext_um2` (`psd::RadiusRule::mean_volume_um3`), so that a volume
+    /// fraction `f` of these particles has the extinction coefficient
+    /// `f c_ext_um2 / volume_um3` per µm.
+    pub volume_um3: f64,
 }
 
 /// Single-scattering albedo and Greek coefficients of a Mie population
@@ -294,6 +302,8 @@ pub fn mie_optics(
                 coefficients,
                 report,
                 tolerance,
+                c_ext_um2: res.qext * std::f64::consts::PI * r * r,
+                volume_um3: 4.0 / 3.0 * std::f64::consts::PI * r.powi(3),
             })
         }
         (None, Some(dist)) => mie_optics_distribution(
@@ -359,6 +369,8 @@ pub fn mie_optics_distribution(
         coefficients,
         report,
         tolerance,
+        c_ext_um2: bulk.c_ext_um2,
+        volume_um3: rule.mean_volume_um3(),
     })
 }
 

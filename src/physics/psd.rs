@@ -330,6 +330,20 @@ impl RadiusRule {
             .map_or(0, |&x| mie::series_length(x))
     }
 
+    /// Mean particle volume `⟨V⟩ = Σ_i W_i (4π/3) r_i³` in µm³, `r_i = x_i/k`:
+    /// the same limits and normalisation as the mean cross sections
+    /// ([`BulkOptics`]), so `⟨C_ext⟩/⟨V⟩` is the extinction per unit
+    /// particle volume of the population inside the limits.
+    pub fn mean_volume_um3(&self) -> f64 {
+        let c = 4.0 / 3.0 * PI / self.k.powi(3);
+        self.size_parameter
+            .iter()
+            .zip(&self.weight)
+            .map(|(x, w)| w * x.powi(3))
+            .sum::<f64>()
+            * c
+    }
+
     /// The averaged normalised scattering matrix of the rule at the cosines
     /// `mu`, `c Σ W_i [products_i(μ)]` with `c = 4π/(k² Σ W_i C_sca,i)`
     /// (module doc), so that `½∫a1 dμ = 1` to rounding.
@@ -941,6 +955,46 @@ mod tests {
 
     fn k_host() -> f64 {
         2.0 * PI * 1000.0 * N_HOST / LAMBDA
+    }
+
+    /// The rule's mean volume is the third moment of the distribution:
+    /// log-normal `⟨r³⟩ = r_g³ exp(9/2 ln²σ_g)`, gamma (Hansen & Travis
+    /// 1974, `α = (1 − 3b)/b`) `⟨r³⟩ = (ab)³ (α+1)(α+2)(α+3)`, both over
+    /// limits wide enough that the cut tails are below 1e-12.
+    #[test]
+    fn the_rule_mean_volume_is_the_third_moment() {
+        let quad = PsdQuadrature {
+            radius_range_um: Some([1e-4, 20.0]),
+            ..Default::default()
+        };
+        let m = RefractiveIndex::new(2.0, 0.01);
+        let mu = [-1.0, 0.0, 1.0];
+        let (r_g, s) = (0.2f64, 1.4f64);
+        let ln = SizeDistribution::LogNormal {
+            r_g_um: r_g,
+            sigma_g: s,
+        };
+        let (a, b) = (0.3f64, 0.1f64);
+        let alpha = (1.0 - 3.0 * b) / b;
+        let gamma = SizeDistribution::Gamma {
+            r_eff_um: a,
+            v_eff: b,
+        };
+        for (d, r3) in [
+            (ln, r_g.powi(3) * (4.5 * s.ln().powi(2)).exp()),
+            (
+                gamma,
+                (a * b).powi(3) * (alpha + 1.0) * (alpha + 2.0) * (alpha + 3.0),
+            ),
+        ] {
+            let (_, rule) = bulk_optics_with_rule(&d, m, N_HOST, LAMBDA, &mu, &quad).unwrap();
+            let v = 4.0 / 3.0 * PI * r3;
+            assert!(
+                rel(rule.mean_volume_um3(), v) < 1e-6,
+                "{d:?}: {} vs {v}",
+                rule.mean_volume_um3()
+            );
+        }
     }
 
     // ------------------------------------------------------ special functions

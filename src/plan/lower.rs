@@ -4,9 +4,11 @@
 //! coefficients) or from Mie theory (`plan::mie`); a Fresnel base becomes
 //! the mirror Mueller matrix of `physics::fresnel`.
 
+use super::film::film_optics;
 use super::mie::mie_optics;
 use crate::material::{
-    BaseSpec, DEFAULT_STREAMS, MaterialSpec, ScattererSpec, Spec, SpecError, ThicknessSpec,
+    BaseSpec, DEFAULT_STREAMS, LayerForm, LayerSpec, MaterialSpec, ScattererSpec, Spec, SpecError,
+    ThicknessSpec,
 };
 use crate::physics::expansion::GreekCoefficients;
 use crate::physics::{RefractiveIndex, fresnel};
@@ -85,9 +87,47 @@ pub fn layer_optics(
     }
 }
 
+/// The solver layer of `spec.layers[i]` at one wavelength: an optical
+/// layer as written, a film through [`film_optics`].
+fn layer(i: usize, l: &LayerSpec, wavelength_nm: Option<f64>) -> Result<Layer, SpecError> {
+    match l.valid_form() {
+        LayerForm::Optical {
+            thickness,
+            scatterer,
+        } => {
+            let path = format!("layers[{i}].scatterer");
+            let (albedo, coef) = layer_optics(&path, scatterer, wavelength_nm)?;
+            let thickness = match thickness {
+                ThicknessSpec::Number(t) => Thickness::Finite(*t),
+                ThicknessSpec::Word(_) => Thickness::Infinite,
+            };
+            Ok(Layer {
+                thickness,
+                albedo,
+                coef,
+            })
+        }
+        LayerForm::Film {
+            thickness_um,
+            pigments,
+            binder,
+        } => {
+            let wl = wavelength_nm
+                .ok_or_else(|| SpecError::new("wavelengths_nm", "required for films"))?;
+            let f = film_optics(&format!("layers[{i}]"), thickness_um, pigments, binder, wl)?;
+            Ok(Layer {
+                thickness: Thickness::Finite(f.optical_thickness),
+                albedo: f.albedo,
+                coef: f.coefficients,
+            })
+        }
+    }
+}
+
 /// The ambient (real) and base (complex) refractive indices of a Fresnel
 /// base at one wavelength, validated; `None` for other bases. The ambient
-/// index defaults to the host of the last layer's Mie particles, else 1.
+/// index defaults to the real part of the medium of the last layer's
+/// particles (a Mie host, a film's binder) at that wavelength, else 1.
 pub fn fresnel_indices(
     spec: &Spec,
     wavelength_nm: Option<f64>,
@@ -100,10 +140,18 @@ pub fn fresnel_indices(
         return Ok(None);
     };
     let n2 = resolve_index("base.fresnel.material", material, wavelength_nm)?;
-    let n1 = ambient_index.unwrap_or_else(|| match spec.layers.last().map(|l| &l.scatterer) {
-        Some(ScattererSpec::Mie(m)) => m.host_index,
-        _ => 1.0,
-    });
+    let n1 = match (ambient_index, spec.layers.last().and_then(|l| l.host())) {
+        (Some(n), _) => *n,
+        (None, Some(host)) => {
+            let i = spec.layers.len() - 1;
+            super::mie::host_real_index(
+                &format!("layers[{i}]"),
+                host,
+                wavelength_nm.unwrap_or(f64::NAN),
+            )?
+        }
+        (None, None) => 1.0,
+    };
     fresnel::mueller(n1, n2, 0.5).map_err(|e| SpecError::new("base.fresnel", e.to_string()))?;
     Ok(Some((n1, n2)))
 }
@@ -118,17 +166,7 @@ pub fn fresnel_mirror(n1: f64, n2: RefractiveIndex) -> solver::truncation::Mirro
 pub fn problem(spec: &Spec, wavelength_nm: Option<f64>) -> Result<Problem, SpecError> {
     let mut layers = Vec::with_capacity(spec.layers.len());
     for (i, l) in spec.layers.iter().enumerate() {
-        let path = format!("layers[{i}].scatterer");
-        let (albedo, coef) = layer_optics(&path, &l.scatterer, wavelength_nm)?;
-        let thickness = match l.optical_thickness {
-            ThicknessSpec::Number(t) => Thickness::Finite(t),
-            ThicknessSpec::Word(_) => Thickness::Infinite,
-        };
-        layers.push(Layer {
-            thickness,
-            albedo,
-            coef,
-        });
+        layers.push(layer(i, l, wavelength_nm)?);
     }
     let base = match &spec.base {
         BaseSpec::Black => Base::Black,

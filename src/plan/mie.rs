@@ -3,31 +3,57 @@
 //! parameter a spec asks for (its cost).
 
 use super::lower::resolve_index;
-use crate::material::{MieSpec, ScattererSpec, SizeDistributionSpec, Spec, SpecError};
+use crate::material::{
+    HostSpec, LayerForm, MieSpec, ScattererSpec, SizeDistributionSpec, Spec, SpecError,
+};
+use crate::physics::MieOptics;
 use crate::physics::expansion::GreekCoefficients;
 
+/// Single-scattering albedo and Greek coefficients of a Mie layer at one
+/// wavelength.
 pub(super) fn mie_optics(
     path: &str,
     m: &MieSpec,
     wavelength_nm: Option<f64>,
 ) -> Result<(f64, GreekCoefficients), SpecError> {
+    mie_population(path, m, wavelength_nm).map(|o| (o.albedo, o.coefficients))
+}
+
+/// The real part of a host medium at one wavelength (Mie theory's host
+/// index; docs/spec.md, Absorbing binders).
+pub(super) fn host_real_index(
+    path: &str,
+    host: &HostSpec,
+    wavelength_nm: f64,
+) -> Result<f64, SpecError> {
+    host.index_at(wavelength_nm)
+        .map(|n| n.n)
+        .map_err(|e| SpecError::new(path, e.to_string()))
+}
+
+/// Mie theory for the population of `m` at one wavelength (`path`: the
+/// JSON path of `m`).
+pub(super) fn mie_population(
+    path: &str,
+    m: &MieSpec,
+    wavelength_nm: Option<f64>,
+) -> Result<MieOptics, SpecError> {
     let wl =
         wavelength_nm.ok_or_else(|| SpecError::new("wavelengths_nm", "required for Mie layers"))?;
     let index = resolve_index(&format!("{path}.material"), &m.material, Some(wl))?;
+    let host = host_real_index(&format!("{path}.host_index"), &m.host_index, wl)?;
     let optics = match &m.size_distribution {
         Some(d) => crate::physics::mie_optics_distribution(
             index,
-            m.host_index,
+            host,
             wl,
             &to_psd(d),
             &psd_quadrature(d),
             None,
         ),
-        None => crate::physics::mie_optics(index, m.host_index, wl, m.radius_um, None, None),
+        None => crate::physics::mie_optics(index, host, wl, m.radius_um, None, None),
     };
-    optics
-        .map(|o| (o.albedo, o.coefficients))
-        .map_err(|e| SpecError::new(path, e.to_string()))
+    optics.map_err(|e| SpecError::new(path, e.to_string()))
 }
 
 /// Quadrature settings of a size distribution: the defaults, with the
@@ -67,9 +93,10 @@ pub fn max_size_parameter(spec: &Spec) -> f64 {
         return 0.0;
     };
     let mut x_max: f64 = 0.0;
-    for layer in &spec.layers {
-        if let ScattererSpec::Mie(m) = &layer.scatterer {
-            let k_per_um = 2.0 * std::f64::consts::PI * 1000.0 * m.host_index / lambda_min_nm;
+    for (i, layer) in spec.layers.iter().enumerate() {
+        for (_, m) in populations(i, layer) {
+            let n_host = host_index_max(&m.host_index, wavelengths);
+            let k_per_um = 2.0 * std::f64::consts::PI * 1000.0 * n_host / lambda_min_nm;
             let r_um = match (&m.radius_um, &m.size_distribution) {
                 (Some(r), _) => *r,
                 (None, Some(d)) => match d.radius_limits_um() {
@@ -85,4 +112,43 @@ pub fn max_size_parameter(spec: &Spec) -> f64 {
         }
     }
     x_max
+}
+
+/// The particle populations of layer `i`, each with its JSON path: a Mie
+/// scatterer (`layers[i].scatterer.mie`), or each pigment of a film in its
+/// binder (`layers[i].pigments[j]`).
+pub fn populations(i: usize, layer: &crate::material::LayerSpec) -> Vec<(String, MieSpec)> {
+    match layer.form() {
+        Ok(LayerForm::Optical {
+            scatterer: ScattererSpec::Mie(m),
+            ..
+        }) => vec![(format!("layers[{i}].scatterer.mie"), m.clone())],
+        Ok(LayerForm::Film {
+            pigments, binder, ..
+        }) => pigments
+            .iter()
+            .enumerate()
+            .map(|(j, p)| (format!("layers[{i}].pigments[{j}]"), p.in_binder(binder)))
+            .collect(),
+        _ => Vec::new(),
+    }
+}
+
+/// The JSON path of the medium of a population at `path` (from
+/// [`populations`]): a Mie scatterer's `host_index`, a film's `binder`.
+pub fn host_path(path: &str) -> String {
+    match path.rsplit_once(".pigments[") {
+        Some((layer, _)) => format!("{layer}.binder"),
+        None => format!("{path}.host_index"),
+    }
+}
+
+/// The largest real part of a host over the spec's wavelengths (1 where it
+/// cannot be evaluated: `check_solvable` reports that).
+fn host_index_max(host: &HostSpec, wavelengths_nm: &[f64]) -> f64 {
+    wavelengths_nm
+        .iter()
+        .filter_map(|&wl| host.index_at(wl).ok())
+        .map(|n| n.n)
+        .fold(1.0, f64::max)
 }

@@ -11,6 +11,8 @@
 //!   the settings;
 //! * Mie layers and size distributions (`mie`), with
 //!   [`max_size_parameter`], the cost the service caps;
+//! * paint films ([`film`]): thickness, pigments by volume fraction and a
+//!   binder, mixed into one layer per wavelength;
 //! * [`check_solvable`] (`solvable`): what the physics and the solver would
 //!   refuse that the spec alone decides, checked before any solve;
 //! * [`id`]: the content address of the canonical form and the version
@@ -21,6 +23,7 @@
 //!   [`family_of_spec`] may answer a request.
 
 mod cover;
+pub mod film;
 pub mod id;
 mod lower;
 mod mie;
@@ -28,6 +31,7 @@ mod parts;
 mod solvable;
 
 pub use cover::{CoverCheck, family_of_canonical, family_of_spec, spec_may_cover, stokes_contains};
+pub use film::{DENSE_PVC, FilmOptics, PigmentOptics, film_optics, film_warnings};
 pub use id::{
     SCHEMA_VERSION, SOLVER_VERSION, id_of_canonical, id_of_spec, id_preimage, is_id, result_version,
 };
@@ -35,7 +39,7 @@ pub use lower::{
     StreamPolicy, fresnel_indices, fresnel_mirror, layer_optics, problem, settings, stream_policy,
     wavelengths,
 };
-pub use mie::max_size_parameter;
+pub use mie::{max_size_parameter, populations};
 pub use parts::{WavelengthPart, wavelength_parts};
 pub use solvable::check_solvable;
 

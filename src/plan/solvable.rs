@@ -3,8 +3,11 @@
 //! submission and by `polbrdf solve` before solving). They lower the
 //! non-Mie layers and the base, hence live with the lowering.
 
+use super::mie::{host_path, populations};
 use super::{StreamPolicy, fresnel_indices, layer_optics, stream_policy, wavelengths};
-use crate::material::{BaseSpec, MaterialSpec, ScattererSpec, Spec, SpecError, ThicknessSpec};
+use crate::material::{
+    BaseSpec, LayerForm, MaterialSpec, MieSpec, ScattererSpec, Spec, SpecError, ThicknessSpec,
+};
 use crate::physics::RefractiveIndex;
 use crate::solver::{self, Layer, SolverError, Thickness};
 
@@ -15,9 +18,10 @@ use crate::solver::{self, Layer, SolverError, Thickness};
 ///
 /// * every named material has refractive-index data at every wavelength
 ///   (path `wavelengths_nm[k]`);
-/// * Mie inputs are inside the validated range of `physics::mie`: the
-///   relative index `m = n_particle/n_host` at every wavelength and, for
-///   monodisperse spheres, the size parameter `2π r n_host/λ`;
+/// * Mie inputs (a Mie scatterer, each pigment of a film) are inside the
+///   validated range of `physics::mie`: a host (binder) of real index ≥ 1,
+///   the relative index `m = n_particle/n_host` at every wavelength and,
+///   for monodisperse spheres, the size parameter `2π r n_host/λ`;
 /// * a Fresnel base's indices are accepted by `physics::fresnel`;
 /// * a phase function that is not forward-peaked and longer than the
 ///   streams can integrate ([`solver::check_resolved`]) is refused, naming
@@ -42,37 +46,24 @@ pub fn check_solvable(spec: &Spec, max_streams: usize) -> Result<(), SpecError> 
             )
         };
         for (i, layer) in spec.layers.iter().enumerate() {
-            let ScattererSpec::Mie(m) = &layer.scatterer else {
-                continue;
-            };
-            let mp = format!("layers[{i}].scatterer.mie");
-            let material = format!("{mp}.material");
-            let index = material_index(&m.material, wl).map_err(|e| at(e, &material))?;
-            let (k_per_um, _) =
-                crate::physics::mie::wavenumber_and_index(index, m.host_index, wl).map_err(
-                    |e| {
-                        SpecError::new(
-                            material.clone(),
-                            format!(
-                                "at {wl} nm (wavelengths_nm[{k}]) with host_index {}: {e}; the particle must differ from its binder",
-                                m.host_index
-                            ),
-                        )
-                    },
-                )?;
-            if let Some(r) = m.radius_um {
-                use crate::physics::mie::{SIZE_PARAMETER_MAX, SIZE_PARAMETER_MIN};
-                let x = k_per_um * r;
-                if !(SIZE_PARAMETER_MIN..=SIZE_PARAMETER_MAX).contains(&x) {
+            for (mp, m) in populations(i, layer) {
+                let material = format!("{mp}.material");
+                let index = material_index(&m.material, wl).map_err(|e| at(e, &material))?;
+                let host_at = host_path(&mp);
+                let host = m
+                    .host_index
+                    .index_at(wl)
+                    .map_err(|e| at(SpecError::new("", e.to_string()), &host_at))?;
+                if !(host.n.is_finite() && host.n >= 1.0) {
                     return Err(SpecError::new(
-                        format!("{mp}.radius_um"),
+                        host_at,
                         format!(
-                            "the Mie size parameter 2π r n_host/λ = {x:.3e} at {wl} nm (wavelengths_nm[{k}]) is outside the validated range [{SIZE_PARAMETER_MIN:e}, {SIZE_PARAMETER_MAX:e}]: choose radius_um between {:.3e} and {:.3e} µm at this wavelength",
-                            (SIZE_PARAMETER_MIN / k_per_um).max(1e-6),
-                            (SIZE_PARAMETER_MAX / k_per_um).min(1e4)
+                            "the host's real index is {} at {wl} nm (wavelengths_nm[{k}]): a binder needs n ≥ 1",
+                            host.n
                         ),
                     ));
                 }
+                check_population(&mp, &m, index, host.n, wl, k)?;
             }
         }
         if let BaseSpec::Fresnel { material, .. } = &spec.base {
@@ -99,13 +90,20 @@ pub fn check_solvable(spec: &Spec, max_streams: usize) -> Result<(), SpecError> 
         }
     };
     for (i, l) in spec.layers.iter().enumerate() {
-        if matches!(l.scatterer, ScattererSpec::Mie(_)) {
+        let LayerForm::Optical {
+            thickness,
+            scatterer,
+        } = l.valid_form()
+        else {
+            continue;
+        };
+        if matches!(scatterer, ScattererSpec::Mie(_)) {
             continue;
         }
-        let (albedo, coef) = layer_optics(&format!("layers[{i}].scatterer"), &l.scatterer, None)?;
+        let (albedo, coef) = layer_optics(&format!("layers[{i}].scatterer"), scatterer, None)?;
         let layer = Layer {
-            thickness: match l.optical_thickness {
-                ThicknessSpec::Number(t) => Thickness::Finite(t),
+            thickness: match thickness {
+                ThicknessSpec::Number(t) => Thickness::Finite(*t),
                 ThicknessSpec::Word(_) => Thickness::Infinite,
             },
             albedo,
@@ -128,6 +126,42 @@ pub fn check_solvable(spec: &Spec, max_streams: usize) -> Result<(), SpecError> 
                 String::new()
             };
             return Err(SpecError::new(path, format!("{e}{cap}")));
+        }
+    }
+    Ok(())
+}
+
+/// The Mie inputs of the population `m` at JSON path `mp` inside the
+/// validated range of `physics::mie` at `wl` (`wavelengths_nm[k]`): the
+/// relative index, and for one radius the size parameter.
+fn check_population(
+    mp: &str,
+    m: &MieSpec,
+    index: RefractiveIndex,
+    n_host: f64,
+    wl: f64,
+    k: usize,
+) -> Result<(), SpecError> {
+    let (k_per_um, _) = crate::physics::mie::wavenumber_and_index(index, n_host, wl).map_err(|e| {
+        SpecError::new(
+            format!("{mp}.material"),
+            format!(
+                "at {wl} nm (wavelengths_nm[{k}]) with host index {n_host}: {e}; the particle must differ from its binder"
+            ),
+        )
+    })?;
+    if let Some(r) = m.radius_um {
+        use crate::physics::mie::{SIZE_PARAMETER_MAX, SIZE_PARAMETER_MIN};
+        let x = k_per_um * r;
+        if !(SIZE_PARAMETER_MIN..=SIZE_PARAMETER_MAX).contains(&x) {
+            return Err(SpecError::new(
+                format!("{mp}.radius_um"),
+                format!(
+                    "the Mie size parameter 2π r n_host/λ = {x:.3e} at {wl} nm (wavelengths_nm[{k}]) is outside the validated range [{SIZE_PARAMETER_MIN:e}, {SIZE_PARAMETER_MAX:e}]: choose radius_um between {:.3e} and {:.3e} µm at this wavelength",
+                    (SIZE_PARAMETER_MIN / k_per_um).max(1e-6),
+                    (SIZE_PARAMETER_MAX / k_per_um).min(1e4)
+                ),
+            ));
         }
     }
     Ok(())

@@ -82,7 +82,10 @@ pub fn dop_vs_mu(
     let (rows, what, wl, settings, solver) = match source {
         Source::Spec { path, spec } => {
             let s = solvable(path, spec, &o.solve)?;
-            let taus = o.taus.clone().unwrap_or_else(|| vec![spec_thickness(spec)]);
+            let taus = o
+                .taus
+                .clone()
+                .unwrap_or_else(|| vec![spec_thickness(spec, s.wavelength_nm)]);
             let rows = curves::dop_vs_mu(
                 &s.problem,
                 s.policy,
@@ -111,7 +114,7 @@ pub fn dop_vs_mu(
             let wl = table_wavelength(table, o.solve.wavelength_nm)?;
             let (tau, label) = match table_spec(table) {
                 Some(s) => (
-                    spec_thickness(&s).value(),
+                    spec_thickness(&s, wl).value(),
                     format!("{} on {} base", material_name(&s), base_name(&s)),
                 ),
                 None => (f64::NAN, "spec unknown".into()),

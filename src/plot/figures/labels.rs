@@ -32,7 +32,20 @@ pub(super) fn material_name(spec: &Spec) -> String {
     let Some(layer) = spec.layers.first() else {
         return "no layer".into();
     };
-    match &layer.scatterer {
+    let Some(scatterer) = layer.optical_scatterer() else {
+        return match &layer.pigments {
+            Some(p) => {
+                let names: Vec<String> = p.iter().map(|q| q.material.label()).collect();
+                format!(
+                    "{} film, {} µm",
+                    names.join(" + "),
+                    layer.thickness_um.unwrap_or(f64::NAN)
+                )
+            }
+            None => "layer".into(),
+        };
+    };
+    match scatterer {
         ScattererSpec::Mie(m) => {
             let mat = m.material.label();
             match m.radius_um {
@@ -58,12 +71,18 @@ pub(super) fn base_name(spec: &Spec) -> String {
     }
 }
 
-/// The optical thickness of the spec's top layer.
-pub(super) fn spec_thickness(spec: &Spec) -> Thickness {
-    match spec.layers.first().map(|l| &l.optical_thickness) {
+/// The optical thickness of the spec's top layer (a film's at
+/// `wavelength_nm`; NaN where it cannot be lowered).
+pub(super) fn spec_thickness(spec: &Spec, wavelength_nm: Option<f64>) -> Thickness {
+    let Some(layer) = spec.layers.first() else {
+        return Thickness::Finite(0.0);
+    };
+    match &layer.optical_thickness {
         Some(ThicknessSpec::Number(t)) => Thickness::Finite(*t),
         Some(ThicknessSpec::Word(_)) => Thickness::Infinite,
-        None => Thickness::Finite(0.0),
+        None => crate::plan::problem(spec, wavelength_nm)
+            .map(|p| p.layers[0].thickness)
+            .unwrap_or(Thickness::Finite(f64::NAN)),
     }
 }
 

@@ -35,7 +35,7 @@
 //! [`DENSE_PVC`] is the level above which [`film_warnings`] says so; no
 //! correction is applied.
 
-use super::mie::{host_real_index, mie_population};
+use super::mie::mie_population;
 use crate::material::{HostSpec, PigmentSpec, SpecError};
 use crate::physics::RefractiveIndex;
 use crate::physics::expansion::GreekCoefficients;
@@ -99,7 +99,6 @@ pub fn film_optics(
     let binder_index = binder
         .index_at(wavelength_nm)
         .map_err(|e| SpecError::new(format!("{p}.binder"), e.to_string()))?;
-    host_real_index(&format!("{p}.binder"), binder, wavelength_nm)?;
     let mut parts = Vec::with_capacity(pigments.len());
     let mut coefs = Vec::with_capacity(pigments.len());
     for (j, pigment) in pigments.iter().enumerate() {
@@ -152,14 +151,7 @@ pub fn film_optics(
 /// the longest.
 pub fn mixed(coefs: &[GreekCoefficients], weights: &[f64]) -> GreekCoefficients {
     let len = coefs.iter().map(|c| c.beta.len()).max().unwrap_or(1);
-    let mut out = GreekCoefficients {
-        beta: vec![0.0; len],
-        alpha: vec![0.0; len],
-        zeta: vec![0.0; len],
-        delta: vec![0.0; len],
-        gamma: vec![0.0; len],
-        epsilon: vec![0.0; len],
-    };
+    let mut out = GreekCoefficients::zeros(len);
     for (c, &w) in coefs.iter().zip(weights) {
         for (dst, src) in [
             (&mut out.beta, &c.beta),

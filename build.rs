@@ -13,7 +13,7 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 /// The measured tables, in the order `physics::materials` lists them.
-const MATERIAL_FILES: [&str; 16] = [
+const MATERIAL_FILES: [&str; 17] = [
     "tio2_rutile.csv",
     "tio2_anatase.csv",
     "gold.csv",
@@ -30,6 +30,7 @@ const MATERIAL_FILES: [&str; 16] = [
     "polystyrene.csv",
     "polycarbonate.csv",
     "water.csv",
+    "algaas.csv",
 ];
 
 fn main() {

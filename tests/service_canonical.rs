@@ -23,7 +23,7 @@ fn documented_test_vector() {
     let id = block(&doc, "text test-vector-id");
 
     // The recipe, over the literal documented bytes.
-    let preimage = format!("polbrdf-spec/2\npolbrdf-solver/4\n{canonical}");
+    let preimage = format!("polbrdf-spec/3\npolbrdf-solver/4\n{canonical}");
     let independent: String = Sha256::digest(preimage.as_bytes())
         .iter()
         .map(|b| format!("{b:02x}"))
@@ -35,6 +35,6 @@ fn documented_test_vector() {
     let (c, i) = polbrdf::plan::id_of_spec(&spec);
     assert_eq!(c, canonical, "canonical JSON of the documented spec");
     assert_eq!(i, id.trim());
-    assert_eq!(polbrdf::plan::SCHEMA_VERSION, "2");
+    assert_eq!(polbrdf::plan::SCHEMA_VERSION, "3");
     assert_eq!(polbrdf::plan::SOLVER_VERSION, "4");
 }

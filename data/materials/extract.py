@@ -209,3 +209,15 @@ write(
     "liquid water at 25 C",
     nk_page("main", "H2O", "Hale"),
 )
+write(
+    "algaas.csv", "AlGaAs", ["aluminium gallium arsenide", "aluminum gallium arsenide",
+                             "Al0.804Ga0.196As"],
+    "D. E. Aspnes, S. M. Kelso, R. A. Logan, R. Bhat, Optical properties of AlxGa1-xAs, "
+    f"J. Appl. Phys. 60, 754-767 (1986), doi:10.1063/1.337426; {DB}, "
+    "page other/AlAs-GaAs/Aspnes-80.4",
+    "Al(x)Ga(1-x)As with x = 0.804, the composition whose values the seed's Table 2 prints "
+    "(3.832 + 0.183i, 3.411, 3.239 at 450/550/650 nm; these rows give, by monotone cubic interpolation, 3.831 + 0.184i, 3.410, "
+    "3.239); ellipsometry every 0.1 eV, 1.5-6.0 eV (207-827 nm); no open data for this "
+    "composition beyond 827 nm",
+    nk_page("other", "AlAs-GaAs", "Aspnes-80.4"),
+)

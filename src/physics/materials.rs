@@ -19,10 +19,10 @@
 //! | `silver` | Ag | 247.97–2623.6 | Rakić et al. 1998 |
 //! | `aluminium` | aluminum, Al | 177.12–2755.2 | Rakić 1995 |
 //! | `chromium` | Cr | 247.97–2622.1 | Rakić et al. 1998 |
-//! | `copper` | Cu | 248.68–2649.8 | Rakić et al. 1998 |
+//! | `copper` | Cu | 206.64–2649.8 | Rakić et al. 1998 |
 //! | `ZnO` | zinc oxide, zinc white | 300–2600 | Aguilar et al. 2019, film |
 //! | `SiO2` | silica, fused silica | 210–2600 | Malitson 1965 (Sellmeier, every 10 nm) |
-//! | `AlGaAs` | aluminium/aluminum gallium arsenide | 450–650 | seed Table 2 only: no measured table (the seed gives no Al fraction) |
+//! | `AlGaAs` | aluminium/aluminum gallium arsenide, Al0.804Ga0.196As | 206.6–826.6 | Aspnes et al. 1986, x = 0.804 (the composition of the seed's Table 2, below) |
 //!
 //! Between rows, `n` and `k` are each interpolated by the **monotone
 //! piecewise-cubic Hermite** interpolant (Fritsch & Carlson, SIAM J. Numer.
@@ -41,7 +41,11 @@
 //! iron oxide (`0.260 + 0.383i` at 550 nm) is not hematite: `n < 1` is
 //! unphysical for a dielectric oxide in the visible, where measured hematite
 //! is `3.32 + 0.50i` (Querry 1985, ordinary ray); a plain `"iron oxide"` is
-//! the measured hematite.
+//! the measured hematite. Its AlGaAs is Al₀.₈₀₄Ga₀.₁₉₆As: Aspnes et al.'s
+//! rows for x = 0.804 give `3.831 + 0.184i` (450 nm, interpolated), `3.410`
+//! and `3.239` where the seed prints `3.832 + 0.183i`, `3.411` and `3.239`
+//! (no other tabulated composition comes within 0.05), so a plain
+//! `"AlGaAs"` is that composition, measured over 207–827 nm.
 //!
 //! # Lookup
 //!
@@ -103,8 +107,7 @@ const fn seed(name: &'static str, table: &'static [[f64; 3]]) -> Material {
     }
 }
 
-/// The seed's Table 2, exactly as printed (canonical names of [`MEASURED`],
-/// plus AlGaAs).
+/// The seed's Table 2, exactly as printed (canonical names of [`MEASURED`]).
 static SEED: [Material; 5] = [
     seed(
         "TiO2",
@@ -148,18 +151,12 @@ static SEED: [Material; 5] = [
     ),
 ];
 
-/// AlGaAs by its plain name: the seed's table (module doc).
-static ALGAAS: Material = Material {
-    aliases: &["aluminium gallium arsenide", "aluminum gallium arsenide"],
-    ..SEED[3]
-};
-
 /// Every material a plain name can mean, in listing order.
 fn plain() -> impl Iterator<Item = &'static Material> {
-    MEASURED.iter().chain(std::iter::once(&ALGAAS))
+    MEASURED.iter()
 }
 
-/// All built-in materials of a plain name (measured tables, and AlGaAs).
+/// All built-in materials of a plain name (the measured tables).
 pub fn materials() -> Vec<&'static Material> {
     plain().collect()
 }
@@ -397,11 +394,19 @@ mod tests {
             let mid = seed.index_at(500.0).unwrap();
             assert!((mid.n - 0.5 * (vals[0].0 + vals[1].0)).abs() < 1e-15);
         }
-        // AlGaAs has no measured table: its plain name is the seed's.
-        assert_eq!(
-            find("AlGaAs").unwrap().table,
-            find_seed("algaas").unwrap().table
-        );
+        // The seed's AlGaAs is Aspnes et al.'s x = 0.804 (module doc): the
+        // measured table agrees with Table 2 to 0.004 at its wavelengths.
+        let (measured, printed) = (find("AlGaAs").unwrap(), find_seed("algaas").unwrap());
+        for wl in [450.0, 550.0, 650.0] {
+            let (a, b) = (
+                measured.index_at(wl).unwrap(),
+                printed.index_at(wl).unwrap(),
+            );
+            assert!(
+                (a.n - b.n).abs() < 4e-3 && (a.k - b.k).abs() < 4e-3,
+                "{wl}: {a:?} {b:?}"
+            );
+        }
         assert!(matches!(
             find_seed("chromium"),
             Err(PhysicsError::Invalid(_))
@@ -448,6 +453,12 @@ mod tests {
         for wl in [430.0, 550.0, 632.8, 1000.0, 1530.0] {
             assert_index("rutile", wl, devore(wl), 0.0, 2e-6);
         }
+        // Aspnes et al. (1986) Al(0.804)Ga(0.196)As, Table as printed: at
+        // 2.0 eV n 3.277, k 0; at 3.0 eV n 4.050, k 0.353; at 4.0 eV
+        // n 3.962, k 2.119 (λ = 1239.84/E nm, the database's rows).
+        assert_index("AlGaAs", 619.9, 3.277, 0.0, 0.0);
+        assert_index("AlGaAs", 413.3, 4.050, 0.353, 0.0);
+        assert_index("AlGaAs", 310.0, 3.962, 2.119, 0.0);
         // Hale & Querry (1973) water, Table 1 as printed: 0.500 µm
         // n 1.335, k 1.00e-9; 1.000 µm n 1.327, k 2.89e-6.
         assert_index("water", 500.0, 1.335, 1.00e-9, 0.0);
@@ -469,7 +480,7 @@ mod tests {
 
     /// Every measured material covers the wavelengths a renderer samples,
     /// 300–2500 nm, except those whose public data stop short (module doc:
-    /// rutile 430–1530 nm, anatase to 827 nm, AlGaAs the seed's 450–650 nm,
+    /// rutile 430–1530 nm, anatase and AlGaAs to 827 nm,
     /// calcite 210–2170 nm, the polymer binders from 400 nm).
     #[test]
     fn measured_materials_cover_300_to_2500_nm() {
@@ -496,7 +507,7 @@ mod tests {
         let range = |name: &str| find(name).unwrap().wavelength_range_nm();
         assert_eq!(range("TiO2"), (430.0, 1530.0));
         assert_eq!(range("anatase"), (206.64, 826.56));
-        assert_eq!(range("AlGaAs"), (450.0, 650.0));
+        assert_eq!(range("AlGaAs"), (206.6, 826.6));
         assert_eq!(range("calcite"), (210.0, 2170.0));
         assert_eq!(range("acrylic"), (400.0, 2608.1));
     }
@@ -592,6 +603,7 @@ mod tests {
             ("hematite", "iron oxide"),
             ("Fe2O3", "iron oxide"),
             ("algaas", "AlGaAs"),
+            ("Al0.804Ga0.196As", "AlGaAs"),
             ("silver", "silver"),
             ("Ag", "silver"),
             ("Aluminium", "aluminium"),

@@ -14,12 +14,14 @@ use crate::digest;
 use crate::material::Spec;
 use crate::material::canonical::canonical_json;
 
-/// Version of the spec schema mixed into every id. Version 2: a plain
+/// Version of the spec schema mixed into every id. Version 3: a plain
+/// `"AlGaAs"` means Aspnes et al.'s measured Al₀.₈₀₄Ga₀.₁₉₆As (version 2
+/// meant the seed's three values for it). Version 2: a plain
 /// built-in material name means its measured table (`physics::materials`,
 /// monotone cubic in wavelength); the seed's Table 2 values are
 /// `{"name", "source": "seed"}`. Version 1 meant the seed's values for TiO2,
 /// gold, iron oxide, AlGaAs and silver, interpolated linearly.
-pub const SCHEMA_VERSION: &str = "2";
+pub const SCHEMA_VERSION: &str = "3";
 
 /// Version of the solver's results mixed into every id. Version 4: a
 /// `solver.tolerance` also bounds the Fourier orders synthesized
@@ -77,7 +79,7 @@ mod tests {
         assert_eq!(id_of_spec(&a), id_of_spec(&b));
         let (c, id) = id_of_spec(&a);
         assert_eq!(id, digest::sha256_hex(id_preimage(&c).as_bytes()));
-        assert!(id_preimage(&c).starts_with("polbrdf-spec/2\npolbrdf-solver/4\n{"));
+        assert!(id_preimage(&c).starts_with("polbrdf-spec/3\npolbrdf-solver/4\n{"));
     }
 
     #[test]

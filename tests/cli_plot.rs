@@ -371,6 +371,114 @@ fn lobe_plots_tables_from_specs_and_files() {
     );
 }
 
+/// `plot spectrum`: a hematite layer (measured, dispersive) at five
+/// wavelengths over black and over a grey Lambertian base: images, one CSV
+/// row per wavelength and spec, π f11 and the DOP as `polbrdf solve
+/// --points` gives them at each wavelength, the plane albedo within (0, 1)
+/// and above the grey base's share; the absorption edge shows (hematite
+/// reflects more at 700 nm than at 450 nm).
+#[test]
+fn spectrum_plots_what_solve_computes_at_each_wavelength() {
+    let d = dir();
+    let spec = |base: serde_json::Value| {
+        json!({
+            "layers": [{"optical_thickness": 2.0,
+                        "scatterer": {"mie": {"material": "iron oxide", "radius_um": 0.1,
+                                              "host_index": 1.5}}}],
+            "base": base, "wavelengths_nm": [450, 500, 550, 600, 700],
+            "solver": {"streams": 8}
+        })
+        .to_string()
+    };
+    let black = write(&d, "hematite_black.json", &spec(json!("black")));
+    let grey = write(
+        &d,
+        "hematite_grey.json",
+        &spec(json!({"lambertian": {"albedo": 0.5}})),
+    );
+    let svg = d.join("spectrum.svg");
+    let png = d.join("spectrum.png");
+    for out in [&svg, &png] {
+        let v = ok(&[
+            "plot",
+            "spectrum",
+            &black,
+            &grey,
+            "--theta-i",
+            "45",
+            "--theta-o",
+            "20",
+            "--phi-o-deg",
+            "180",
+            "-o",
+            out.to_str().unwrap(),
+        ]);
+        assert_eq!(v["plot"], "spectrum");
+        assert_eq!(v["curves"].as_array().unwrap().len(), 2);
+    }
+    assert_images(&svg, &png);
+    let rows = parse_csv(&d.join("spectrum.csv"));
+    assert_eq!(rows.len(), 2 * 5);
+    let points = write(
+        &d,
+        "points.json",
+        &json!({"points": [{"theta_i_deg": 45, "phi_i_deg": 0,
+                            "theta_o_deg": 20, "phi_o_deg": 180}]})
+        .to_string(),
+    );
+    for (file, k0) in [(&black, 0), (&grey, 5)] {
+        let v = ok(&["solve", file, "--points", &points]);
+        for (w, r) in v["results"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .zip(&rows[k0..k0 + 5])
+        {
+            assert_eq!(
+                r["wavelength_nm"].parse::<f64>().unwrap(),
+                w["wavelength_nm"].as_f64().unwrap()
+            );
+            let m = &w["points"][0]["mueller"];
+            let f11 = m[0][0].as_f64().unwrap();
+            let col = |i: usize| m[i][0].as_f64().unwrap();
+            let dop = (col(1).powi(2) + col(2).powi(2) + col(3).powi(2)).sqrt() / f11;
+            assert!((num(r, "f11_per_sr") - f11).abs() <= 1e-12 * f11, "{r:?}");
+            assert!(
+                (num(r, "reflectance_factor") - std::f64::consts::PI * f11).abs() <= 1e-12,
+                "{r:?}"
+            );
+            assert!((num(r, "dop") - dop).abs() < 1e-12, "{r:?}");
+            let a = num(r, "plane_albedo");
+            assert!(a > 0.0 && a < 1.0, "{r:?}");
+        }
+    }
+    for k in 0..5 {
+        // The grey base adds reflection at every wavelength.
+        assert!(num(&rows[5 + k], "plane_albedo") > num(&rows[k], "plane_albedo"));
+    }
+    assert!(num(&rows[4], "plane_albedo") > num(&rows[0], "plane_albedo"));
+    let err = fails(&[
+        "plot",
+        "spectrum",
+        &black,
+        "--wavelength-nm",
+        "550",
+        "-o",
+        svg.to_str().unwrap(),
+    ]);
+    assert!(err.contains("--wavelength-nm"), "{err}");
+    let err = fails(&[
+        "plot",
+        "spectrum",
+        &black,
+        "--theta-i",
+        "90",
+        "-o",
+        svg.to_str().unwrap(),
+    ]);
+    assert!(err.contains("--theta-i"), "{err}");
+}
+
 #[test]
 fn bad_input_is_a_clear_error() {
     let d = dir();

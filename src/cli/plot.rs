@@ -1,7 +1,8 @@
-//! `polbrdf plot {dop-vs-mu,dop-vs-tau,scalar-error,lobe} ... -o OUT.svg|OUT.png`:
+//! `polbrdf plot {dop-vs-mu,dop-vs-tau,scalar-error,lobe,spectrum} ... -o OUT.svg|OUT.png`:
 //! Figs. 8, 4, 7 and 13 of Collin, Pattanaik, LiKamWa and Bouatouch,
 //! "Computation of Polarized Subsurface BRDF for Rendering" (Graphics
-//! Interface 2014) from our own solves. Every command writes the image
+//! Interface 2014) from our own solves, and a paint's spectra (reflectance
+//! and DOP against wavelength). Every command writes the image
 //! (format from the extension), the plotted numbers next to it as CSV (same
 //! stem, `.csv`; `lobe` also writes `STEM-map.{svg,png,csv}`) and prints a
 //! JSON summary (files, settings, the key numbers of each curve). Images
@@ -21,7 +22,7 @@ use crate::plot::draw;
 use crate::plot::figure::Figure;
 use crate::plot::figures::{
     self, DopVsMuOptions, DopVsTauOptions, LobeInput, LobeOptions, ScalarErrorInput,
-    ScalarErrorOptions, SolveOptions, Source,
+    ScalarErrorOptions, SolveOptions, Source, SpectrumInput, SpectrumOptions,
 };
 use crate::solver::Thickness;
 use clap::{Args, Subcommand};
@@ -58,6 +59,10 @@ pub enum PlotCommand {
     /// (Fig. 13 of Collin et al. 2014).
     #[command(after_help = COLLIN_2014)]
     Lobe(LobeArgs),
+    /// Reflectance (plane albedo and π f11 at one viewing direction) and the
+    /// degree of polarization against wavelength for unpolarized light, one
+    /// colour per spec, at every wavelength the spec lists.
+    Spectrum(SpectrumArgs),
 }
 
 /// Output files.
@@ -211,6 +216,29 @@ pub struct LobeArgs {
     pub out: OutputArgs,
 }
 
+#[derive(Debug, Args)]
+pub struct SpectrumArgs {
+    /// Material specs (docs/spec.md) with `wavelengths_nm`, one colour each.
+    #[arg(required = true)]
+    pub specs: Vec<String>,
+    /// Legend labels, one per spec, comma separated (default: material on base).
+    #[arg(long, value_delimiter = ',')]
+    pub labels: Vec<String>,
+    /// Incident polar angle (deg, azimuth 0).
+    #[arg(long, default_value_t = 45.0)]
+    pub theta_i: f64,
+    /// Viewing polar angle (deg) of π f11 and the DOP (0: the 45°/0° geometry).
+    #[arg(long, default_value_t = 0.0)]
+    pub theta_o: f64,
+    /// Viewing azimuth (deg, φ_i = 0; 180 = mirror side).
+    #[arg(long, allow_negative_numbers = true, default_value_t = 180.0)]
+    pub phi_o_deg: f64,
+    #[command(flatten)]
+    pub solve: SolveArgs,
+    #[command(flatten)]
+    pub out: OutputArgs,
+}
+
 /// Run a plot subcommand.
 pub fn run(c: &PlotCommand) -> Result<Value, String> {
     let out = match c {
@@ -218,6 +246,7 @@ pub fn run(c: &PlotCommand) -> Result<Value, String> {
         PlotCommand::DopVsTau(a) => &a.out,
         PlotCommand::ScalarError(a) => &a.out,
         PlotCommand::Lobe(a) => &a.out,
+        PlotCommand::Spectrum(a) => &a.out,
     };
     // Fail on the output name and the font before any solve.
     draw::format_of(&out.output)?;
@@ -228,6 +257,7 @@ pub fn run(c: &PlotCommand) -> Result<Value, String> {
         PlotCommand::DopVsTau(a) => dop_vs_tau(a),
         PlotCommand::ScalarError(a) => scalar_error(a),
         PlotCommand::Lobe(a) => lobe(a),
+        PlotCommand::Spectrum(a) => spectrum(a),
     }?;
     v["font"] = json!(font.display().to_string());
     v["wall_time_ms"] = json!(start.elapsed().as_secs_f64() * 1e3);
@@ -594,6 +624,63 @@ fn scalar_error(a: &ScalarErrorArgs) -> Result<Value, String> {
     let csv = write_plot(&plot.figure, &plot.csv, &a.out.output)?;
     report(
         "scalar-error",
+        &plot.summary,
+        &[("image", &a.out.output), ("csv", &csv)],
+    )
+}
+
+fn spectrum(a: &SpectrumArgs) -> Result<Value, String> {
+    let polar = |flag: &str, t: f64| {
+        if t.is_finite() && (0.0..90.0).contains(&t) {
+            Ok(t.to_radians().cos())
+        } else {
+            Err(format!("{flag} {t} is outside [0, 90)"))
+        }
+    };
+    let mu0 = polar("--theta-i", a.theta_i)?;
+    let mu = polar("--theta-o", a.theta_o)?;
+    let phi_o_deg = check_phi(a.phi_o_deg)?;
+    if a.solve.wavelength_nm.is_some() {
+        return Err(
+            "--wavelength-nm does not apply to spectrum: it plots every wavelength of each spec"
+                .into(),
+        );
+    }
+    if !a.labels.is_empty() && a.labels.len() != a.specs.len() {
+        return Err(format!(
+            "--labels has {} entries for {} specs",
+            a.labels.len(),
+            a.specs.len()
+        ));
+    }
+    let o = SpectrumOptions {
+        mu0,
+        mu,
+        phi_o_deg,
+        solve: solve_options(&a.solve)?,
+        size: size(&a.out)?,
+    };
+    // Read every spec before solving any.
+    let specs = a
+        .specs
+        .iter()
+        .map(|p| load_spec(p, &a.solve))
+        .collect::<Result<Vec<_>, _>>()?;
+    let inputs: Vec<SpectrumInput> = a
+        .specs
+        .iter()
+        .zip(&specs)
+        .enumerate()
+        .map(|(k, (path, spec))| SpectrumInput {
+            path,
+            spec,
+            label: a.labels.get(k).cloned(),
+        })
+        .collect();
+    let plot = figures::spectrum(&inputs, &o).map_err(|e| e.to_string())?;
+    let csv = write_plot(&plot.figure, &plot.csv, &a.out.output)?;
+    report(
+        "spectrum",
         &plot.summary,
         &[("image", &a.out.output), ("csv", &csv)],
     )

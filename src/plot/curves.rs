@@ -131,11 +131,21 @@ pub fn reflect(
     policy: StreamPolicy,
     mu: &[f64],
 ) -> Result<ReflectionFourier, SolverError> {
+    reflect_with_streams(problem, policy, mu).map(|(r, _)| r)
+}
+
+/// [`reflect`] and the streams per hemisphere of the answer (the policy's
+/// fixed number, or the level the tolerance driver chose).
+pub fn reflect_with_streams(
+    problem: &Problem,
+    policy: StreamPolicy,
+    mu: &[f64],
+) -> Result<(ReflectionFourier, usize), SolverError> {
     match policy {
         StreamPolicy::Fixed(n) => {
             let mut p = problem.clone();
             p.settings.streams = n;
-            solver::reflection(&p, mu)
+            solver::reflection(&p, mu).map(|r| (r, n))
         }
         StreamPolicy::Tolerance(t) => solver::accuracy::reflection_to_tolerance(
             problem,
@@ -144,7 +154,7 @@ pub fn reflect(
             material::MAX_STREAMS,
             &|_| {},
         )
-        .map(|e| e.reflection),
+        .map(|e| (e.reflection, e.estimate.streams[2])),
     }
 }
 

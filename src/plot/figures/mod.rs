@@ -16,7 +16,10 @@
 //! * [`scalar_error`]: Fig. 7, the error of the scalar RTE against the top
 //!   layer's optical thickness;
 //! * [`lobe`]: Fig. 13, f11 and DOP lobes in the plane of incidence and over
-//!   the hemisphere.
+//!   the hemisphere;
+//!
+//! and one of paints, not of the paper: [`spectrum`], the reflectance and
+//! the DOP against wavelength.
 //!
 //! Thickness sweeps replace the optical thickness of the spec's **top**
 //! layer ([`curves::with_top_thickness`](super::curves::with_top_thickness))
@@ -34,11 +37,16 @@ mod dop_vs_mu;
 mod labels;
 mod lobe;
 mod shared;
+mod spectrum;
 mod sweeps;
 
 pub use dop_vs_mu::{DopVsMuCurve, DopVsMuOptions, DopVsMuSummary, dop_vs_mu};
 pub use labels::{stokes_name, stokes_text};
 pub use lobe::{LobeCurve, LobeInput, LobeOptions, LobePlot, LobePoint, LobeSummary, lobe};
+pub use spectrum::{
+    SpectrumCurve, SpectrumInput, SpectrumOptions, SpectrumSample, SpectrumSummary, spectrum,
+    spectrum_samples,
+};
 pub use sweeps::{
     DopVsTauCurve, DopVsTauOptions, DopVsTauSummary, ScalarErrorCurve, ScalarErrorInput,
     ScalarErrorOptions, ScalarErrorSummary, dop_vs_tau, scalar_error,

@@ -271,3 +271,108 @@ fn words_and_ranges() {
         serde_json::json!({"tolerance": 1e-3})
     );
 }
+
+/// A Rayleigh layer at the listed wavelengths (its optics do not depend on them).
+fn rayleigh_spectrum(tau: f64, albedo: f64, base: &str) -> Spec {
+    crate::material::parse(&format!(
+        r#"{{"layers":[{{"optical_thickness":{tau},"scatterer":{{"rayleigh":{{"albedo":{albedo}}}}}}}],
+            "base":{base},"wavelengths_nm":[450,550,650],"solver":{{"streams":8}}}}"#
+    ))
+    .unwrap()
+}
+
+fn spectrum_options(theta_i_deg: f64, theta_o_deg: f64) -> SpectrumOptions {
+    SpectrumOptions {
+        mu0: theta_i_deg.to_radians().cos(),
+        mu: theta_o_deg.to_radians().cos(),
+        phi_o_deg: 180.0,
+        solve: SolveOptions::default(),
+        size: None,
+    }
+}
+
+/// Energy: a conservative layer over a white Lambertian base reflects all
+/// the light, `A(μ0) = 1` at every wavelength (the stream fluxes conserve
+/// it exactly); over black it reflects less and transmits the rest.
+#[test]
+fn spectrum_albedo_of_a_conservative_layer_on_white_is_one() {
+    let o = spectrum_options(45.0, 0.0);
+    let white = rayleigh_spectrum(1.0, 1.0, r#"{"lambertian":{"albedo":1}}"#);
+    let rows = spectrum_samples("white.json", &white, &o).unwrap();
+    assert_eq!(rows.len(), 3);
+    for r in &rows {
+        assert!(
+            (r.albedo - 1.0).abs() < 1e-12,
+            "{} nm: {}",
+            r.wavelength_nm,
+            r.albedo
+        );
+        assert_eq!(r.streams, 8);
+    }
+    let black = rayleigh_spectrum(1.0, 1.0, r#""black""#);
+    for r in spectrum_samples("black.json", &black, &o).unwrap() {
+        assert!(r.albedo > 0.2 && r.albedo < 0.8, "{}", r.albedo);
+    }
+}
+
+/// Single scattering by a very thin Rayleigh layer over black, θ_i = 45°
+/// to the normal (Θ = 135°): `DOP = sin²Θ/(1 + cos²Θ) = 1/3` and
+/// `f11 = ω τ P(Θ) / (4π μ0 μ)` with `P = ¾(1 + cos²Θ)`.
+#[test]
+fn spectrum_of_a_thin_rayleigh_layer_is_single_scattering() {
+    let tau = 1e-5;
+    let spec = rayleigh_spectrum(tau, 1.0, r#""black""#);
+    let o = spectrum_options(45.0, 0.0);
+    let rows = spectrum_samples("thin.json", &spec, &o).unwrap();
+    let cos_t = -(45f64.to_radians().cos());
+    let p = 0.75 * (1.0 + cos_t * cos_t);
+    let f11 = tau * p / (4.0 * std::f64::consts::PI * o.mu0 * o.mu);
+    for r in &rows {
+        assert!((r.dop - 1.0 / 3.0).abs() < 1e-4, "{}", r.dop);
+        assert!((r.f11 / f11 - 1.0).abs() < 1e-4, "{} vs {f11}", r.f11);
+    }
+}
+
+/// Two specs: two panels, three series per spec in all (albedo solid and
+/// π f11 dashed above, DOP below), one CSV row per wavelength and spec;
+/// a spec without wavelengths is refused by name.
+#[test]
+fn spectrum_has_two_panels_and_a_row_per_wavelength() {
+    let a = rayleigh_spectrum(1.0, 0.9, r#""black""#);
+    let b = rayleigh_spectrum(1.0, 0.9, r#"{"lambertian":{"albedo":0.5}}"#);
+    let inputs = [
+        SpectrumInput {
+            path: "a.json",
+            spec: &a,
+            label: None,
+        },
+        SpectrumInput {
+            path: "b.json",
+            spec: &b,
+            label: Some("on grey".into()),
+        },
+    ];
+    let plot = spectrum(&inputs, &spectrum_options(45.0, 0.0)).unwrap();
+    assert_eq!((plot.figure.rows, plot.figure.cols), (2, 1));
+    let lines: Vec<_> = plot
+        .figure
+        .panels
+        .iter()
+        .map(|p| match p {
+            Panel::Line(l) => l,
+            other => panic!("line panels, got {other:?}"),
+        })
+        .collect();
+    assert_eq!(lines[0].series.len(), 4);
+    assert_eq!(lines[1].series.len(), 2);
+    assert_eq!(lines[0].series[1].dash, Dash::Dashed);
+    assert!(lines[1].series[1].label.contains("on grey"));
+    assert_eq!(plot.summary.rows, 6);
+    assert_eq!(plot.csv.text().lines().count(), 1 + 6);
+    // The grey base reflects more than black.
+    let (ca, cb) = (&plot.summary.curves[0], &plot.summary.curves[1]);
+    assert!(cb.albedo_min > ca.albedo_max);
+    let none = rayleigh(1.0, 0.9, r#""black""#);
+    let e = spectrum_samples("none.json", &none, &spectrum_options(45.0, 0.0)).unwrap_err();
+    assert!(e.to_string().contains("none.json") && e.to_string().contains("wavelengths_nm"));
+}

@@ -21,10 +21,12 @@ use crate::plot::curves;
 use crate::plot::draw;
 use crate::plot::figure::Figure;
 use crate::plot::figures::{
-    self, DopVsMuOptions, DopVsTauOptions, LobeInput, LobeOptions, ScalarErrorInput,
-    ScalarErrorOptions, SolveOptions, Source, SpectrumInput, SpectrumOptions,
+    self, DopVsMuOptions, DopVsTauOptions, LabelledSpec, LobeInput, LobeOptions,
+    ScalarErrorOptions, SolveOptions, Source,
 };
 use crate::solver::Thickness;
+
+mod spectrum;
 use clap::{Args, Subcommand};
 use serde::Serialize;
 use serde_json::{Value, json};
@@ -62,7 +64,7 @@ pub enum PlotCommand {
     /// Reflectance (plane albedo and π f11 at one viewing direction) and the
     /// degree of polarization against wavelength for unpolarized light, one
     /// colour per spec, at every wavelength the spec lists.
-    Spectrum(SpectrumArgs),
+    Spectrum(spectrum::SpectrumArgs),
 }
 
 /// Output files.
@@ -216,29 +218,6 @@ pub struct LobeArgs {
     pub out: OutputArgs,
 }
 
-#[derive(Debug, Args)]
-pub struct SpectrumArgs {
-    /// Material specs (docs/spec.md) with `wavelengths_nm`, one colour each.
-    #[arg(required = true)]
-    pub specs: Vec<String>,
-    /// Legend labels, one per spec, comma separated (default: material on base).
-    #[arg(long, value_delimiter = ',')]
-    pub labels: Vec<String>,
-    /// Incident polar angle (deg, azimuth 0).
-    #[arg(long, default_value_t = 45.0)]
-    pub theta_i: f64,
-    /// Viewing polar angle (deg) of π f11 and the DOP (0: the 45°/0° geometry).
-    #[arg(long, default_value_t = 0.0)]
-    pub theta_o: f64,
-    /// Viewing azimuth (deg, φ_i = 0; 180 = mirror side).
-    #[arg(long, allow_negative_numbers = true, default_value_t = 180.0)]
-    pub phi_o_deg: f64,
-    #[command(flatten)]
-    pub solve: SolveArgs,
-    #[command(flatten)]
-    pub out: OutputArgs,
-}
-
 /// Run a plot subcommand.
 pub fn run(c: &PlotCommand) -> Result<Value, String> {
     let out = match c {
@@ -257,7 +236,7 @@ pub fn run(c: &PlotCommand) -> Result<Value, String> {
         PlotCommand::DopVsTau(a) => dop_vs_tau(a),
         PlotCommand::ScalarError(a) => scalar_error(a),
         PlotCommand::Lobe(a) => lobe(a),
-        PlotCommand::Spectrum(a) => spectrum(a),
+        PlotCommand::Spectrum(a) => spectrum::spectrum(a),
     }?;
     v["font"] = json!(font.display().to_string());
     v["wall_time_ms"] = json!(start.elapsed().as_secs_f64() * 1e3);
@@ -468,6 +447,37 @@ fn load_spec(path: &str, solve: &SolveArgs) -> Result<Spec, String> {
     Ok(spec)
 }
 
+/// Every spec of a multi-spec plot, read (and checked) before any solve;
+/// `--labels`, when given, has one entry per spec.
+fn load_specs(paths: &[String], labels: &[String], solve: &SolveArgs) -> Result<Vec<Spec>, String> {
+    if !labels.is_empty() && labels.len() != paths.len() {
+        return Err(format!(
+            "--labels has {} entries for {} specs",
+            labels.len(),
+            paths.len()
+        ));
+    }
+    paths.iter().map(|p| load_spec(p, solve)).collect()
+}
+
+/// The specs with their paths and `--labels` entries.
+fn labelled<'a>(
+    paths: &'a [String],
+    specs: &'a [Spec],
+    labels: &[String],
+) -> Vec<LabelledSpec<'a>> {
+    paths
+        .iter()
+        .zip(specs)
+        .enumerate()
+        .map(|(k, (path, spec))| LabelledSpec {
+            path,
+            spec,
+            label: labels.get(k).cloned(),
+        })
+        .collect()
+}
+
 /// `STEM-suffix.ext` next to `path`.
 fn sibling(path: &Path, suffix: &str, ext: &str) -> PathBuf {
     let stem = path
@@ -587,13 +597,6 @@ fn dop_vs_tau(a: &DopVsTauArgs) -> Result<Value, String> {
 fn scalar_error(a: &ScalarErrorArgs) -> Result<Value, String> {
     let pairs = parse_pairs(&a.pairs)?;
     let phi_o_deg = check_phi(a.phi_o_deg)?;
-    if !a.labels.is_empty() && a.labels.len() != a.specs.len() {
-        return Err(format!(
-            "--labels has {} entries for {} specs",
-            a.labels.len(),
-            a.specs.len()
-        ));
-    }
     let taus = thicknesses(a.taus.as_deref(), &a.tau_range, a.per_decade)?;
     check_finite("scalar-error", &taus)?;
     let o = ScalarErrorOptions {
@@ -603,84 +606,12 @@ fn scalar_error(a: &ScalarErrorArgs) -> Result<Value, String> {
         solve: solve_options(&a.solve)?,
         size: size(&a.out)?,
     };
-    // Read every spec before solving any.
-    let specs = a
-        .specs
-        .iter()
-        .map(|p| load_spec(p, &a.solve))
-        .collect::<Result<Vec<_>, _>>()?;
-    let inputs: Vec<ScalarErrorInput> = a
-        .specs
-        .iter()
-        .zip(&specs)
-        .enumerate()
-        .map(|(k, (path, spec))| ScalarErrorInput {
-            path,
-            spec,
-            label: a.labels.get(k).cloned(),
-        })
-        .collect();
-    let plot = figures::scalar_error(&inputs, &o).map_err(|e| e.to_string())?;
+    let specs = load_specs(&a.specs, &a.labels, &a.solve)?;
+    let plot = figures::scalar_error(&labelled(&a.specs, &specs, &a.labels), &o)
+        .map_err(|e| e.to_string())?;
     let csv = write_plot(&plot.figure, &plot.csv, &a.out.output)?;
     report(
         "scalar-error",
-        &plot.summary,
-        &[("image", &a.out.output), ("csv", &csv)],
-    )
-}
-
-fn spectrum(a: &SpectrumArgs) -> Result<Value, String> {
-    let polar = |flag: &str, t: f64| {
-        if t.is_finite() && (0.0..90.0).contains(&t) {
-            Ok(t.to_radians().cos())
-        } else {
-            Err(format!("{flag} {t} is outside [0, 90)"))
-        }
-    };
-    let mu0 = polar("--theta-i", a.theta_i)?;
-    let mu = polar("--theta-o", a.theta_o)?;
-    let phi_o_deg = check_phi(a.phi_o_deg)?;
-    if a.solve.wavelength_nm.is_some() {
-        return Err(
-            "--wavelength-nm does not apply to spectrum: it plots every wavelength of each spec"
-                .into(),
-        );
-    }
-    if !a.labels.is_empty() && a.labels.len() != a.specs.len() {
-        return Err(format!(
-            "--labels has {} entries for {} specs",
-            a.labels.len(),
-            a.specs.len()
-        ));
-    }
-    let o = SpectrumOptions {
-        mu0,
-        mu,
-        phi_o_deg,
-        solve: solve_options(&a.solve)?,
-        size: size(&a.out)?,
-    };
-    // Read every spec before solving any.
-    let specs = a
-        .specs
-        .iter()
-        .map(|p| load_spec(p, &a.solve))
-        .collect::<Result<Vec<_>, _>>()?;
-    let inputs: Vec<SpectrumInput> = a
-        .specs
-        .iter()
-        .zip(&specs)
-        .enumerate()
-        .map(|(k, (path, spec))| SpectrumInput {
-            path,
-            spec,
-            label: a.labels.get(k).cloned(),
-        })
-        .collect();
-    let plot = figures::spectrum(&inputs, &o).map_err(|e| e.to_string())?;
-    let csv = write_plot(&plot.figure, &plot.csv, &a.out.output)?;
-    report(
-        "spectrum",
         &plot.summary,
         &[("image", &a.out.output), ("csv", &csv)],
     )

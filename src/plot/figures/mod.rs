@@ -107,6 +107,17 @@ pub enum Source<'a> {
     },
 }
 
+/// One spec of a figure with a curve (or set of curves) per spec.
+#[derive(Clone, Debug)]
+pub struct LabelledSpec<'a> {
+    /// How the caller names the spec (its file).
+    pub path: &'a str,
+    /// The spec.
+    pub spec: &'a Spec,
+    /// Legend label (`None`: from the spec, its top layer's material).
+    pub label: Option<String>,
+}
+
 /// Wavelength and solver settings shared by every figure.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct SolveOptions {

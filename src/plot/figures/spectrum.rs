@@ -34,16 +34,8 @@ const SIZE: (u32, u32) = (900, 860);
 /// Curves with at most this many wavelengths get a marker at each.
 const MARKERS_UP_TO: usize = 12;
 
-/// One spec of a spectrum figure.
-#[derive(Clone, Debug)]
-pub struct SpectrumInput<'a> {
-    /// How the caller names the spec (its file).
-    pub path: &'a str,
-    /// The spec; it must list `wavelengths_nm`.
-    pub spec: &'a Spec,
-    /// Legend label (`None`: the top layer's material on its base).
-    pub label: Option<String>,
-}
+/// One spec of a spectrum figure; it must list `wavelengths_nm`.
+pub type SpectrumInput<'a> = super::LabelledSpec<'a>;
 
 /// What [`spectrum`] plots.
 #[derive(Clone, Debug, PartialEq)]

@@ -216,16 +216,9 @@ pub fn dop_vs_tau(
 // ---------------------------------------------------------------------------
 // Fig. 7: error of the scalar RTE against thickness.
 
-/// One spec of a [`scalar_error`] figure.
-#[derive(Clone, Debug)]
-pub struct ScalarErrorInput<'a> {
-    /// How the caller names the spec (its file).
-    pub path: &'a str,
-    /// The spec; its top layer's thickness is varied.
-    pub spec: &'a Spec,
-    /// Legend label (`None`: the top layer's material).
-    pub label: Option<String>,
-}
+/// One spec of a [`scalar_error`] figure; its top layer's thickness is
+/// varied.
+pub type ScalarErrorInput<'a> = super::LabelledSpec<'a>;
 
 /// What [`scalar_error`] plots.
 #[derive(Clone, Debug, PartialEq)]

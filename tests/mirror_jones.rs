@@ -279,28 +279,7 @@ fn solve_points(spec: &Value) -> Vec<[[f64; 4]; 4]> {
         .map(|&(a, b, c, d)| json!({"theta_i_deg": a, "phi_i_deg": b, "theta_o_deg": c, "phi_o_deg": d}))
         .collect();
     std::fs::write(&pp, json!({ "points": points }).to_string()).unwrap();
-    let (code, out, err) = common::run(&[
-        "solve",
-        sp.to_str().unwrap(),
-        "--points",
-        pp.to_str().unwrap(),
-    ]);
-    assert_eq!(code, 0, "stderr: {err}");
-    let v: Value = serde_json::from_str(&out).unwrap();
-    v["results"][0]["points"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|p| {
-            let mut m = [[0.0; 4]; 4];
-            for (i, row) in m.iter_mut().enumerate() {
-                for (j, x) in row.iter_mut().enumerate() {
-                    *x = p["mueller"][i][j].as_f64().unwrap();
-                }
-            }
-            m
-        })
-        .collect()
+    common::solve_points(sp.to_str().unwrap(), pp.to_str().unwrap())
 }
 
 /// Compare the solver's thin-layer BRDF per τ (Richardson extrapolated) with

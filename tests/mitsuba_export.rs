@@ -126,6 +126,26 @@ fn max_diff(a: &M4, b: &M4) -> f64 {
         .fold(0.0, |m, (x, y)| m.max((x - y).abs()))
 }
 
+/// `polbrdf export TABLE --format json --points FILE`: the points file
+/// `d/NAME.json` holds `points`; the export's `results`, one per wavelength.
+fn export_points(d: &Path, table: &str, name: &str, points: &Value) -> Vec<Value> {
+    let pf = d.join(format!("{name}.json"));
+    std::fs::write(&pf, points.to_string()).unwrap();
+    let of = d.join(format!("{name}-out.json"));
+    ok(&[
+        "export",
+        table,
+        "--format",
+        "json",
+        "--points",
+        &path(&pf),
+        "-o",
+        &path(&of),
+    ]);
+    let v: Value = serde_json::from_slice(&std::fs::read(&of).unwrap()).unwrap();
+    v["results"].as_array().unwrap().clone()
+}
+
 fn scale(m: &M4, s: f64) -> M4 {
     m.map(|r| r.map(|x| x * s))
 }
@@ -297,23 +317,7 @@ fn mitsuba_evaluates_the_export_like_polbrdf() {
         }).collect::<Vec<_>>()})
     };
     let ours_of = |swap: bool, name: &str| -> Vec<Vec<M4>> {
-        let pf = d.join(format!("{name}.json"));
-        std::fs::write(&pf, dirs(swap).to_string()).unwrap();
-        let of = d.join(format!("{name}-out.json"));
-        ok(&[
-            "export",
-            &table,
-            "--format",
-            "json",
-            "--points",
-            &path(&pf),
-            "-o",
-            &path(&of),
-        ]);
-        let v: Value = serde_json::from_slice(&std::fs::read(&of).unwrap()).unwrap();
-        v["results"]
-            .as_array()
-            .unwrap()
+        export_points(&d, &table, name, &dirs(swap))
             .iter()
             .map(|r| {
                 r["points"]
@@ -592,26 +596,12 @@ fn built_in_material_exports_from_400_to_800_nm() {
         .filter(|&(wi, wo)| angles_of(wi).0 <= 80.0 && angles_of(wo).0 <= 80.0)
         .take(PAIRS)
         .collect();
-    let pf = d.join("hematite-points.json");
     let pts = json!({"points": pairs.iter().map(|&(wi, wo)| {
         let (ti, pi) = angles_of(wi);
         let (to, po) = angles_of(wo);
         json!({"theta_i_deg": ti, "phi_i_deg": pi, "theta_o_deg": to, "phi_o_deg": po})
     }).collect::<Vec<_>>()});
-    std::fs::write(&pf, pts.to_string()).unwrap();
-    let of = d.join("hematite-out.json");
-    ok(&[
-        "export",
-        &table,
-        "--format",
-        "json",
-        "--points",
-        &path(&pf),
-        "-o",
-        &path(&of),
-    ]);
-    let v: Value = serde_json::from_slice(&std::fs::read(&of).unwrap()).unwrap();
-    let results = v["results"].as_array().unwrap();
+    let results = export_points(&d, &table, "hematite", &pts);
     assert_eq!(results.len(), 5);
     // Mitsuba's matrices (frames x = ω_i × ω_o, times cos θ_i) from ours.
     let ours: Vec<Vec<M4>> = results

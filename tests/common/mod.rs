@@ -97,6 +97,26 @@ pub fn ok(args: &[&str]) -> Value {
     serde_json::from_str(&out).expect("JSON on stdout")
 }
 
+/// `polbrdf solve SPEC --points POINTS` (both file paths): the Mueller
+/// matrix of each point at the first wavelength, in the points' order.
+pub fn solve_points(spec: &str, points: &str) -> Vec<[[f64; 4]; 4]> {
+    let v = ok(&["solve", spec, "--points", points]);
+    v["results"][0]["points"]
+        .as_array()
+        .expect("points in the first result")
+        .iter()
+        .map(|p| {
+            let mut m = [[0.0; 4]; 4];
+            for (i, row) in m.iter_mut().enumerate() {
+                for (j, x) in row.iter_mut().enumerate() {
+                    *x = p["mueller"][i][j].as_f64().expect("a number");
+                }
+            }
+            m
+        })
+        .collect()
+}
+
 /// A fresh scratch directory `polbrdf-tests/<name>-<pid>-<k>` under the
 /// system temporary directory. Paths into it outlive any guard the tests
 /// could hold, so instead the first call of each test process removes the

@@ -5,7 +5,7 @@
 //! (`Table::from_spec` for a spec): the hemisphere needs every direction.
 
 use super::labels::{base_name, file_name, material_name, policy_text};
-use super::shared::{spec_wavelength, table_spec, table_wavelength};
+use super::shared::{push_stokes_cells, spec_wavelength, stokes_csv, table_spec, table_wavelength};
 use super::{PlotError, SolveOptions, Source};
 use crate::brdf::{Directions, PolarGrid, Table};
 use crate::physics::stokes::Mueller;
@@ -144,18 +144,12 @@ pub fn lobe(inputs: &[LobeInput<'_>], o: &LobeOptions) -> Result<LobePlot, PlotE
     }
 
     // CSVs.
-    let mut csv = Csv::new(&[
+    let mut csv = stokes_csv(&[
         "label",
         "theta_i_deg",
         "theta_o_deg",
         "phi_o_deg",
         "theta_o_signed_deg",
-        "f11_per_sr",
-        "i_per_sr",
-        "q_per_sr",
-        "u_per_sr",
-        "v_per_sr",
-        "dop",
     ]);
     let mut map_csv = Csv::new(&[
         "label",
@@ -173,10 +167,8 @@ pub fn lobe(inputs: &[LobeInput<'_>], o: &LobeOptions) -> Result<LobePlot, PlotE
                 r.theta_o_deg.into(),
                 r.phi_o_deg.into(),
                 signed(r).into(),
-                r.f11.into(),
             ];
-            row.extend(r.stokes_out.iter().map(|&x| Cell::Num(x)));
-            row.push(r.dop.into());
+            push_stokes_cells(&mut row, r.f11, &r.stokes_out, r.dop);
             csv.push(row);
         }
         for r in map {

@@ -126,17 +126,9 @@ pub(super) fn dash_of(position: usize) -> Dash {
     }
 }
 
-/// Columns of the DOP CSV (`dop-vs-mu`, `dop-vs-tau`).
-const DOP_HEADER: [&str; 15] = [
-    "tau",
-    "mu0",
-    "mu",
-    "theta_o_deg",
-    "phi_o_deg",
-    "stokes_in_i",
-    "stokes_in_q",
-    "stokes_in_u",
-    "stokes_in_v",
+/// The last columns of every CSV that reports a reflected Stokes vector:
+/// `f11`, the vector for unpolarized (or the stated) incidence, its DOP.
+const STOKES_OUT_COLUMNS: [&str; 6] = [
     "f11_per_sr",
     "i_per_sr",
     "q_per_sr",
@@ -145,9 +137,31 @@ const DOP_HEADER: [&str; 15] = [
     "dop",
 ];
 
+/// A CSV whose columns are `leading` followed by [`STOKES_OUT_COLUMNS`].
+pub(super) fn stokes_csv(leading: &[&str]) -> Csv {
+    Csv::new(&[leading, &STOKES_OUT_COLUMNS[..]].concat())
+}
+
+/// The cells of [`STOKES_OUT_COLUMNS`], appended to `row`.
+pub(super) fn push_stokes_cells(row: &mut Vec<Cell>, f11: f64, stokes_out: &[f64; 4], dop: f64) {
+    row.push(f11.into());
+    row.extend(stokes_out.iter().map(|&x| Cell::Num(x)));
+    row.push(dop.into());
+}
+
 /// The DOP samples as CSV, one row each.
 pub(super) fn dop_csv(rows: &[DopSample]) -> Csv {
-    let mut c = Csv::new(&DOP_HEADER);
+    let mut c = stokes_csv(&[
+        "tau",
+        "mu0",
+        "mu",
+        "theta_o_deg",
+        "phi_o_deg",
+        "stokes_in_i",
+        "stokes_in_q",
+        "stokes_in_u",
+        "stokes_in_v",
+    ]);
     for r in rows {
         let mut row: Vec<Cell> = vec![
             r.tau.into(),
@@ -157,9 +171,7 @@ pub(super) fn dop_csv(rows: &[DopSample]) -> Csv {
             r.phi_o_deg.into(),
         ];
         row.extend(r.stokes_in.iter().map(|&x| Cell::Num(x)));
-        row.push(r.f11.into());
-        row.extend(r.stokes_out.iter().map(|&x| Cell::Num(x)));
-        row.push(r.dop.into());
+        push_stokes_cells(&mut row, r.f11, &r.stokes_out, r.dop);
         c.push(row);
     }
     c

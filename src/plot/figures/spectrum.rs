@@ -18,11 +18,11 @@
 //! The wavelengths are solved in parallel.
 
 use super::labels::{base_name, file_name, material_name, policy_text};
-use super::shared::{min_max_by, percent_axis};
+use super::shared::{min_max_by, percent_axis, push_stokes_cells, stokes_csv};
 use super::{Plot, PlotError, SolveOptions, SolverSummary};
 use crate::material::Spec;
 use crate::plan::{self, StreamPolicy};
-use crate::plot::csv::{Cell, Csv};
+use crate::plot::csv::Cell;
 use crate::plot::curves::{self, UNPOLARIZED, brdf_at, reflect_with_streams};
 use crate::plot::figure::{Axis, Dash, Figure, Legend, LinePanel, Panel, Series};
 use crate::solver;
@@ -176,7 +176,7 @@ pub fn spectrum(
     if inputs.is_empty() {
         return Err(PlotError::Options("give at least one spec".into()));
     }
-    let mut csv = Csv::new(&HEADER);
+    let mut csv = stokes_csv(&HEADER);
     let mut reflectance = Vec::new();
     let mut dop = Vec::new();
     let mut curves_out = Vec::new();
@@ -238,10 +238,8 @@ pub fn spectrum(
                 o.phi_o_deg.into(),
                 r.albedo.into(),
                 r.reflectance_factor().into(),
-                r.f11.into(),
             ];
-            row.extend(r.stokes_out.iter().map(|&x| Cell::Num(x)));
-            row.push(r.dop.into());
+            push_stokes_cells(&mut row, r.f11, &r.stokes_out, r.dop);
             csv.push(row);
             n_rows += 1;
         }
@@ -353,8 +351,8 @@ fn tight_percent_axis(label: &str, values: impl Iterator<Item = f64>) -> Axis {
     }
 }
 
-/// Columns of the spectrum CSV.
-const HEADER: [&str; 14] = [
+/// Leading columns of the spectrum CSV (the Stokes columns follow).
+const HEADER: [&str; 8] = [
     "label",
     "wavelength_nm",
     "streams",
@@ -363,10 +361,4 @@ const HEADER: [&str; 14] = [
     "phi_o_deg",
     "plane_albedo",
     "reflectance_factor",
-    "f11_per_sr",
-    "i_per_sr",
-    "q_per_sr",
-    "u_per_sr",
-    "v_per_sr",
-    "dop",
 ];

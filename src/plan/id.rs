@@ -23,13 +23,19 @@ use crate::material::canonical::canonical_json;
 /// gold, iron oxide, AlGaAs and silver, interpolated linearly.
 pub const SCHEMA_VERSION: &str = "3";
 
-/// Version of the solver's results mixed into every id. Version 4: a
+/// Version of the solver's results mixed into every id. Version 5: the
+/// error estimate also credits the levels' observed algebraic order
+/// (`solver::accuracy` (A3)), so stated estimates of pre-asymptotic solves
+/// grew, and a `solver.tolerance` level's last change is measured from the
+/// previous level's answer (with its secondary correction), not from the
+/// estimate's re-solved coarse level: tolerance specs may stop elsewhere.
+/// Version 4: a
 /// `solver.tolerance` also bounds the Fourier orders synthesized
 /// (`plan::FOURIER_SHARE_OF_TOLERANCE`), so results of tolerance specs
 /// changed. Version 3: the Greek coefficient `ε` is read and written in the
 /// Siewert sign of conventions §4 (`b2 = −Σ ε_l d^l_02`); version 2 read a
 /// user's `ε` with the opposite sign.
-pub const SOLVER_VERSION: &str = "4";
+pub const SOLVER_VERSION: &str = "5";
 
 /// The version label stored with every cached row: `"polbrdf-spec/S
 /// polbrdf-solver/V"`. A row with another label is never served (docs/service.md).
@@ -79,7 +85,7 @@ mod tests {
         assert_eq!(id_of_spec(&a), id_of_spec(&b));
         let (c, id) = id_of_spec(&a);
         assert_eq!(id, digest::sha256_hex(id_preimage(&c).as_bytes()));
-        assert!(id_preimage(&c).starts_with("polbrdf-spec/3\npolbrdf-solver/4\n{"));
+        assert!(id_preimage(&c).starts_with("polbrdf-spec/3\npolbrdf-solver/5\n{"));
     }
 
     #[test]

@@ -593,14 +593,14 @@ fn model_time_passes_through_the_measured_points() {
 fn tolerances_pick_streams_like_the_measured_ladder() {
     // 9.1e-4 ≤ 1e-2 at 4 streams.
     assert_eq!(model_streams_for_tolerance(1e-2), 4);
-    // 8 streams: estimate 5.0e-5 and last change 2.5e-4 ≤ 3e-4.
+    // 8 streams: estimate 8.5e-5 and last change 2.5e-4 ≤ 3e-4.
     assert_eq!(model_streams_for_tolerance(1e-4), 8);
     // 16 streams: 4.3e-7 ≤ 1e-5, last change 2.7e-5 ≤ 3e-5.
     assert_eq!(model_streams_for_tolerance(1e-5), 16);
-    // 32 streams: 2.8e-9 ≤ 1e-7, last change 1.7e-7 ≤ 3e-7.
+    // 32 streams: 3.0e-9 ≤ 1e-7, last change 1.7e-7 ≤ 3e-7.
     assert_eq!(model_streams_for_tolerance(1e-7), 32);
     // 1e-8: at 32 the last change 1.7e-7 > 3e-8; at 64 (2^-6 per
-    // doubling) 4.4e-11 and 2.9e-9.
+    // doubling) 4.7e-11 and 2.9e-9.
     assert_eq!(model_streams_for_tolerance(1e-8), 64);
     assert_eq!(
         solves(&StreamPolicy::Tolerance(1e-4), true),

@@ -591,20 +591,30 @@ fn model_time_passes_through_the_measured_points() {
 
 #[test]
 fn tolerances_pick_streams_like_the_measured_ladder() {
+    // The ladder 4, 6, 8, 12, 16, 24, 32, 48, …; a level is taken when its
+    // estimate is within t and the true error at N/2 within 3t.
     // 9.1e-4 ≤ 1e-2 at 4 streams.
     assert_eq!(model_streams_for_tolerance(1e-2), 4);
-    // 8 streams: estimate 8.5e-5 and last change 2.5e-4 ≤ 3e-4.
+    // 6 streams: 8.4e-5, but 3 streams are 2.5e-4 (4/3)^6 = 1.4e-3 off;
+    // 8: 8.5e-5, last change 2.5e-4 ≤ 3e-4.
     assert_eq!(model_streams_for_tolerance(1e-4), 8);
-    // 16 streams: 4.3e-7 ≤ 1e-5, last change 2.7e-5 ≤ 3e-5.
-    assert_eq!(model_streams_for_tolerance(1e-5), 16);
-    // 32 streams: 3.0e-9 ≤ 1e-7, last change 1.7e-7 ≤ 3e-7.
+    // 12 streams: 4.1e-6 ≤ 1e-5, last change 1.7e-5 ≤ 3e-5.
+    assert_eq!(model_streams_for_tolerance(1e-5), 12);
+    // 16 streams: last change 2.7e-5 > 3e-6; 24: 3.2e-8, 4.9e-7 ≤ 3e-6.
+    assert_eq!(model_streams_for_tolerance(1e-6), 24);
+    // 24 streams: last change 4.9e-7 > 3e-7; 32: 3.0e-9, 1.7e-7 ≤ 3e-7.
     assert_eq!(model_streams_for_tolerance(1e-7), 32);
-    // 1e-8: at 32 the last change 1.7e-7 > 3e-8; at 64 (2^-6 per
-    // doubling) 4.7e-11 and 2.9e-9.
-    assert_eq!(model_streams_for_tolerance(1e-8), 64);
+    // 1e-8: at 32 the last change 1.7e-7 > 3e-8; at 48 (N^-6 beyond 32)
+    // 2.6e-10 and 1.6e-8 ≤ 3e-8.
+    assert_eq!(model_streams_for_tolerance(1e-8), 48);
     assert_eq!(
         solves(&StreamPolicy::Tolerance(1e-4), true),
         vec![2, 3, 4, 6, 8]
+    );
+    // 12 and 24 add their 3N/4 levels (9, 18); 16 and 32 reuse answers.
+    assert_eq!(
+        solves(&StreamPolicy::Tolerance(1e-7), true),
+        vec![2, 3, 4, 6, 8, 9, 12, 16, 18, 24, 32]
     );
     assert_eq!(solves(&StreamPolicy::Fixed(16), true), vec![8, 12, 16]);
     assert_eq!(solves(&StreamPolicy::Fixed(16), false), vec![16]);

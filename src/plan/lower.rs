@@ -221,7 +221,8 @@ pub fn settings(spec: &Spec) -> Settings {
 pub enum StreamPolicy {
     /// Exactly this many streams (given, or the default).
     Fixed(usize),
-    /// The cheapest power of two up to [`crate::material::MAX_STREAMS`] meeting this
+    /// The cheapest level of `solver::accuracy::tolerance_ladder` (4, 6, 8,
+    /// 12, …) up to [`crate::material::MAX_STREAMS`] meeting this
     /// estimated relative error of f11.
     Tolerance(f64),
 }

@@ -27,7 +27,8 @@ use crate::solver::{self, Layer, SolverError, Thickness};
 ///   streams can integrate ([`solver::check_resolved`]) is refused, naming
 ///   the streams it needs: at `solver.streams` (or the default) for fixed
 ///   streams; for a `solver.tolerance`, at the most streams a tolerance
-///   may pick (`max_streams`, rounded down to a power of two), and a
+///   may pick (`max_streams`, rounded down to a level of
+///   `solver::accuracy::tolerance_ladder`), and a
 ///   tolerance needs `max_streams ≥ 4` at all.
 ///
 /// Only Rayleigh, Henyey–Greenstein and expansion layers get the last
@@ -85,8 +86,9 @@ pub fn check_solvable(spec: &Spec, max_streams: usize) -> Result<(), SpecError> 
                     ),
                 ));
             }
-            // The levels of `reflection_to_tolerance` are 4, 8, 16, …
-            ("solver.tolerance", 1usize << max_streams.ilog2())
+            // The largest level `reflection_to_tolerance` may try.
+            let ladder = crate::solver::accuracy::tolerance_ladder(max_streams);
+            ("solver.tolerance", *ladder.last().expect("max_streams ≥ 4"))
         }
     };
     for (i, l) in spec.layers.iter().enumerate() {
@@ -215,11 +217,13 @@ mod tests {
         assert!(check_solvable(&hg(-0.8, r#"{"streams":21}"#), MAX_STREAMS).is_ok());
         assert!(check_solvable(&hg(-0.8, r#"{"streams":20}"#), MAX_STREAMS).is_err());
         assert!(check_solvable(&hg(0.8, "{}"), MAX_STREAMS).is_ok());
-        // A tolerance may pick up to the largest power of two under the cap.
+        // A tolerance may pick up to the largest level of its ladder (4, 6,
+        // 8, 12, …, 32, 48, 64) under the cap.
         let needs = hg_needs(-0.9);
         assert!(needs > 32 && needs <= 64, "{needs}");
-        assert!(check_solvable(&hg(-0.9, r#"{"tolerance":1e-3}"#), 64).is_ok());
-        let e = check_solvable(&hg(-0.9, r#"{"tolerance":1e-3}"#), 63).unwrap_err();
+        let reach = if needs <= 48 { 48 } else { 64 };
+        assert!(check_solvable(&hg(-0.9, r#"{"tolerance":1e-3}"#), reach).is_ok());
+        let e = check_solvable(&hg(-0.9, r#"{"tolerance":1e-3}"#), reach - 1).unwrap_err();
         assert_eq!(e.path, "solver.tolerance");
         assert!(
             e.message.contains(&format!("at least {needs} streams")),

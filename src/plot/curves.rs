@@ -125,7 +125,7 @@ pub fn scalar_twin(problem: &Problem) -> Problem {
 
 /// Solve for beams and observers along `mu` (each in `(0, 1]`) honouring the
 /// stream policy as `polbrdf solve` does: fixed streams, or the cheapest
-/// power of two meeting a tolerance (`solver::accuracy`).
+/// level of the tolerance ladder meeting a tolerance (`solver::accuracy`).
 pub fn reflect(
     problem: &Problem,
     policy: StreamPolicy,

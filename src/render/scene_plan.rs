@@ -222,14 +222,19 @@ pub fn reduced_spec(spec: &Value, needs: &MaterialNeeds) -> Value {
 // Cost model.
 
 /// Measured solves of the seed's TiO2 layer (r = 0.2 µm, 550 nm, τ = 1,
-/// black base) on the 11-angle probe grid, docs/accuracy.md (true errors
-/// at commit 34c57bc, estimates at solver version 5):
-/// `(streams, solver's estimate, true max error of f11)`, both
-/// relative to max f11. The model's tolerance → streams.
-pub const MEASURED_ERRORS: [(usize, f64, f64); 4] = [
+/// black base) on the 11-angle probe grid: `(streams, solver's estimate,
+/// true max error of f11)`, both relative to max f11. 4, 8, 16, 32 streams:
+/// docs/accuracy.md (true errors against 96 streams at commit 34c57bc,
+/// estimates at solver version 5); 6, 12, 24 streams (the other levels of
+/// the tolerance ladder): `tests/tolerance.rs` at solver version 5, against
+/// 64 streams. The model's tolerance → streams.
+pub const MEASURED_ERRORS: [(usize, f64, f64); 7] = [
     (4, 9.1e-4, 2.5e-4),
+    (6, 8.4e-5, 1.7e-5),
     (8, 8.5e-5, 2.7e-5),
+    (12, 4.1e-6, 4.9e-7),
     (16, 4.3e-7, 1.7e-7),
+    (24, 3.2e-8, 1.6e-8),
     (32, 3.0e-9, 2.9e-9),
 ];
 
@@ -264,41 +269,50 @@ pub fn solve_time_ms(n: usize) -> f64 {
     (y0 + (y1 - y0) * (x - x0) / (x1 - x0)).exp()
 }
 
-/// Model (estimate, true error) at `n` = 4·2^j streams.
+/// Model (estimate, true error) at `n` streams: the measured values, log–log
+/// interpolated between measured stream counts, and `N^−6` (the method's
+/// order) from the nearest end outside them.
 fn model_errors(n: usize) -> (f64, f64) {
-    let last = MEASURED_ERRORS[MEASURED_ERRORS.len() - 1];
-    match MEASURED_ERRORS.iter().find(|m| m.0 == n) {
-        Some(&(_, e, t)) => (e, t),
-        None => {
-            let doublings = (n as f64 / last.0 as f64).log2();
-            let f = 2f64.powf(-f64::from(ORDER) * doublings);
-            (last.1 * f, last.2 * f)
-        }
+    let m = &MEASURED_ERRORS;
+    if let Some(&(_, e, t)) = m.iter().find(|p| p.0 == n) {
+        return (e, t);
     }
+    let x = (n as f64).ln();
+    if let Some(w) = m.windows(2).find(|w| n > w[0].0 && n < w[1].0) {
+        let (x0, x1) = ((w[0].0 as f64).ln(), (w[1].0 as f64).ln());
+        let f = (x - x0) / (x1 - x0);
+        let lerp = |a: f64, b: f64| (a.ln() + f * (b.ln() - a.ln())).exp();
+        return (lerp(w[0].1, w[1].1), lerp(w[0].2, w[1].2));
+    }
+    let end = if n < m[0].0 { m[0] } else { m[m.len() - 1] };
+    let f = (n as f64 / end.0 as f64).powf(-f64::from(ORDER));
+    (end.1 * f, end.2 * f)
 }
 
-/// The stream count a tolerance picks in the model: the first of 4, 8,
-/// 16, … whose estimate is within `t` and whose last doubling (taken as
-/// the true error at `N/2`; at 4 streams the estimate, which reports the
-/// last change there, docs/accuracy.md) is within 3 `t`, as
+/// The stream count a tolerance picks in the model: the first level of
+/// `solver::accuracy::tolerance_ladder` (4, 6, 8, 12, …) whose estimate is
+/// within `t` and whose last change (taken as the true error at `N/2`; at 4
+/// streams the estimate, which reports the last change there,
+/// docs/accuracy.md) is within 3 `t`, as
 /// `solver::accuracy::reflection_to_tolerance` accepts a level.
 pub fn model_streams_for_tolerance(t: f64) -> usize {
-    let mut n = 4;
-    while n < MAX_MODEL_STREAMS {
+    let ladder = crate::solver::accuracy::tolerance_ladder(MAX_MODEL_STREAMS);
+    for &n in &ladder {
         let (est, _) = model_errors(n);
         let last_change = if n == 4 { est } else { model_errors(n / 2).1 };
         if est <= t && last_change <= 3.0 * t {
             return n;
         }
-        n *= 2;
     }
-    n
+    *ladder.last().expect("MAX_MODEL_STREAMS ≥ 4")
 }
 
 /// The solves a stream policy runs per wavelength (stream counts): fixed
-/// `N` with the estimate: `N/2, 3N/4, N`; without: `N`; a tolerance: the
-/// ladder `2, 3, 4, 6, 8, 12, …, N` (each level reuses the previous answer
-/// as its `N/2`, `solver::accuracy`).
+/// `N` with the estimate: `N/2, 3N/4, N`; without: `N`; a tolerance: 2
+/// streams, then each level of the ladder up to the model's pick with its
+/// estimate levels `N/2, 3N/4`, each stream count once (a level reuses
+/// earlier solves, `solver::accuracy::reflection_to_tolerance`):
+/// `2, 3, 4, 6, 8, 9, 12, 16, 18, 24, …`.
 pub fn solves(policy: &StreamPolicy, error_estimate: bool) -> Vec<usize> {
     use crate::solver::accuracy::coarse_levels;
     match *policy {
@@ -309,11 +323,13 @@ pub fn solves(policy: &StreamPolicy, error_estimate: bool) -> Vec<usize> {
         StreamPolicy::Tolerance(t) => {
             let top = model_streams_for_tolerance(t);
             let mut out = vec![2];
-            let mut n = 4;
-            while n <= top {
-                let (_, b) = coarse_levels(n).expect("n ≥ 4");
-                out.extend([b, n]);
-                n *= 2;
+            for n in crate::solver::accuracy::tolerance_ladder(top) {
+                let (a, b) = coarse_levels(n).expect("n ≥ 4");
+                for m in [a, b, n] {
+                    if !out.contains(&m) {
+                        out.push(m);
+                    }
+                }
             }
             out
         }

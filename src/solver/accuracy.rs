@@ -490,10 +490,8 @@ pub fn reflection_to_tolerance(
         Ok(v)
     };
     let mut solved = Solved::new();
-    // The answers (each with its own method), by streams: the last change
-    // of `N` is measured from the answer at `N/2`.
-    let mut answers: HashMap<usize, Vec<f64>> = HashMap::new();
-    answers.insert(2, level(&mut solved, 2, 2)?);
+    // An answer at `m` streams is the level `method(m, m)`.
+    level(&mut solved, 2, 2)?;
     let ladder = tolerance_ladder(max_streams);
     for (i, &n) in ladder.iter().enumerate() {
         let (a, b) = estimate_levels(problem, n).expect("n ≥ 4");
@@ -505,7 +503,6 @@ pub fn reflection_to_tolerance(
         };
         let r = solve(n, n)?;
         let fine = probe(&r);
-        solved.insert(method(n, n), fine.clone());
         let (est, contraction) = estimate_from_levels(
             [a, b, n],
             &previous,
@@ -522,8 +519,9 @@ pub fn reflection_to_tolerance(
         // smaller steps the change is too small a guard: iron oxide τ = 0.1
         // at 8 streams states 8.1e-5 (true 1.6e-4) and changed less than
         // 3e-4 from 6 streams (1e-4 was missed), more from 4.
-        let from = answers.get(&(n / 2)).unwrap_or(&previous);
+        let from = solved.get(&method(n / 2, n / 2)).unwrap_or(&previous);
         let last_change = max_diff(from, &fine) / max_of(&fine);
+        solved.insert(method(n, n), fine);
         // The answer itself must resolve every series (the coarse levels
         // of the estimate need not).
         let resolved = problem
@@ -550,7 +548,6 @@ pub fn reflection_to_tolerance(
                 streams: n,
             });
         }
-        answers.insert(n, fine);
     }
     unreachable!("the ladder of max_streams ≥ 4 is not empty")
 }

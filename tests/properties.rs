@@ -486,6 +486,33 @@ fn grazing_errors_are_stated_on_the_directions_integrated() {
     assert!(st.albedo.value > 1e-4, "the excess this case is about");
 }
 
+/// A case of the strict sweep (seed 7112) that was refused: a broad
+/// log-normal (`σ_g = 1.98`) of non-absorbing spheres of index 2.86 in
+/// vacuum, whose radius integral runs to `x = 571`. Their ripple
+/// resonances take ~340 radius nodes per unit of `x`; 195 000 in all
+/// exceeded the fixed 200 000-node limit of the quadrature on some draws.
+/// The default limit now grows with the upper-cut size parameter
+/// (`physics::psd::default_max_nodes`). About 100 s on one core.
+#[test]
+fn broad_non_absorbing_distributions_solve() {
+    let c = Case {
+        layers: vec![(
+            Tau::Zero,
+            Scatterer::MieDistribution {
+                n: 2.8648554488796547,
+                k: 0.0,
+                lognormal: true,
+                size_um: 0.29519911753987105,
+                spread: 1.983430817028978,
+            },
+        )],
+        base: BaseGen::Black,
+        streams: 4,
+    };
+    let stats = RefCell::new(Stats::default());
+    check(&c, &stats, true).unwrap();
+}
+
 fn run_properties(with_albedo: bool) {
     let cases = std::env::var("PROPTEST_CASES")
         .ok()

@@ -489,10 +489,11 @@ fn grazing_errors_are_stated_on_the_directions_integrated() {
 /// A case of the strict sweep (seed 7112) that was refused: a broad
 /// log-normal (`σ_g = 1.98`) of non-absorbing spheres of index 2.86 in
 /// vacuum, whose radius integral runs to `x = 571`. Their ripple
-/// resonances take ~340 radius nodes per unit of `x`; 195 000 in all
-/// exceeded the fixed 200 000-node limit of the quadrature on some draws.
-/// The default limit now grows with the upper-cut size parameter
-/// (`physics::psd::default_max_nodes`). About 100 s on one core.
+/// resonances take ~340 radius nodes per unit of `x`: `polbrdf mie` of
+/// this population uses 194 961, and the solve of the sweep ran past the
+/// fixed 200 000-node limit the quadrature had then. The default limit now
+/// grows with the upper-cut size parameter
+/// (`physics::psd::default_max_nodes`). 83 s on one core.
 #[test]
 fn broad_non_absorbing_distributions_solve() {
     let c = Case {

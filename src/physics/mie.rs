@@ -48,6 +48,9 @@ use super::{C64, PhysicsError, RefractiveIndex, ScatteringMatrixSamples};
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
 
+mod table;
+pub use table::AmplitudeTable;
+
 /// Smallest size parameter accepted.
 pub const SIZE_PARAMETER_MIN: f64 = 1e-6;
 /// Largest size parameter accepted.

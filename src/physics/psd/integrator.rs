@@ -5,9 +5,10 @@ use super::{
     BulkOptics, PsdQuadrature, RadiusRule, SizeDistribution, default_max_nodes, out_of_range,
     radius_limits_um,
 };
-use crate::physics::mie::{self, MieResult};
+use crate::physics::mie::{self, AmplitudeTable, MieResult};
 use crate::physics::{C64, PhysicsError, RefractiveIndex};
 use std::f64::consts::PI;
+use std::rc::Rc;
 
 /// Integrand layout: `[C_ext, C_sca, C_abs, g C_sca, then 4 products per angle]`.
 const N_BULK: usize = 4;
@@ -18,6 +19,22 @@ pub(super) const U_STEP0: f64 = 0.1;
 /// Deepest bisection of a first-level panel (width 0.1 · 2⁻⁴⁵ ≈ 3e-15, the
 /// float resolution of `u`).
 const MAX_DEPTH: u32 = 45;
+/// First-level panels integrated together (their Simpson sums are held
+/// until they are accepted).
+const WINDOW: usize = 32;
+/// Open panels bisected together: their 2 new nodes each form one batch of
+/// the amplitude table.
+const BATCH_PANELS: usize = 32;
+
+/// An open panel `[a, b]` in `u`: the integrand at `a`, the midpoint and
+/// `b`, its Simpson sum and its bisection depth.
+struct Panel {
+    a: f64,
+    b: f64,
+    f: [Rc<Vec<f64>>; 3],
+    whole: Vec<f64>,
+    depth: u32,
+}
 
 /// Adaptive Simpson integration in `u = ln r + k r / 5` (see the module doc).
 pub(super) struct Integrator<'a> {
@@ -46,6 +63,9 @@ pub(super) struct Integrator<'a> {
     unresolved: usize,
     /// Accepted panels `[a, b]` in `u` of the last pass.
     panels: Vec<(f64, f64)>,
+    /// `π_n`, `τ_n` at `mu` up to the series length at `r_max` (none
+    /// without angles).
+    table: Option<AmplitudeTable>,
 }
 
 impl<'a> Integrator<'a> {
@@ -118,6 +138,11 @@ impl<'a> Integrator<'a> {
             err: vec![0.0; n],
             unresolved: 0,
             panels: Vec::new(),
+            table: if mu.is_empty() {
+                None
+            } else {
+                Some(AmplitudeTable::new(mu, table_terms(x_max))?)
+            },
         })
     }
 
@@ -192,9 +217,10 @@ impl<'a> Integrator<'a> {
         }
     }
 
-    /// Integrand at `u`: `n(r) dr/du · [C…, products…]`.
-    fn eval(&mut self, u: f64) -> Result<Vec<f64>, PhysicsError> {
-        self.evals += 1;
+    /// Integrand at each `u` of `us`: `n(r) dr/du · [C…, products…]`, the
+    /// angles of a batch taken together ([`AmplitudeTable`]).
+    fn eval_batch(&mut self, us: &[f64]) -> Result<Vec<Rc<Vec<f64>>>, PhysicsError> {
+        self.evals += us.len();
         if self.evals > self.max_nodes {
             return Err(PhysicsError::Invalid(format!(
                 "size-distribution quadrature needs more than max_nodes = {} radius nodes \
@@ -204,23 +230,39 @@ impl<'a> Integrator<'a> {
                 self.k * self.r_max
             )));
         }
-        let (w, r) = self.jacobian(u);
-        let x = (self.k * r).clamp(mie::SIZE_PARAMETER_MIN, mie::SIZE_PARAMETER_MAX);
-        let sphere = MieResult::from_size_parameter(x, self.m)?;
-        let geo = PI * r * r * w;
-        let mut out = Vec::with_capacity(self.scale.len());
-        out.extend([
-            sphere.qext * geo,
-            sphere.qsca * geo,
-            sphere.qabs * geo,
-            sphere.g * sphere.qsca * geo,
-        ]);
-        if !self.mu.is_empty() {
-            for q in sphere.amplitude_products(self.mu)? {
-                out.extend(q.iter().map(|v| v * w));
-            }
+        let mut spheres = Vec::with_capacity(us.len());
+        let mut jac = Vec::with_capacity(us.len());
+        for &u in us {
+            let (w, r) = self.jacobian(u);
+            let x = (self.k * r).clamp(mie::SIZE_PARAMETER_MIN, mie::SIZE_PARAMETER_MAX);
+            spheres.push(MieResult::from_size_parameter(x, self.m)?);
+            jac.push((w, r));
         }
-        Ok(out)
+        let mut out: Vec<Vec<f64>> = spheres
+            .iter()
+            .zip(&jac)
+            .map(|(sphere, &(w, r))| {
+                let geo = PI * r * r * w;
+                let mut v = vec![0.0; self.scale.len()];
+                v[..N_BULK].copy_from_slice(&[
+                    sphere.qext * geo,
+                    sphere.qsca * geo,
+                    sphere.qabs * geo,
+                    sphere.g * sphere.qsca * geo,
+                ]);
+                v
+            })
+            .collect();
+        if let Some(t) = &self.table {
+            t.products_with(&spheres, |j, k, p| {
+                let w = jac[j].0;
+                let b = N_BULK + 4 * k;
+                for (o, v) in out[j][b..b + 4].iter_mut().zip(p) {
+                    *o = v * w;
+                }
+            })?;
+        }
+        Ok(out.into_iter().map(Rc::new).collect())
     }
 
     /// Scales from an integral estimate: `C_ext` for `C_ext`, `C_abs`;
@@ -253,10 +295,10 @@ impl<'a> Integrator<'a> {
             )));
         }
         let h = span / panels as f64;
-        let mut f = Vec::with_capacity(2 * panels + 1);
-        for i in 0..=2 * panels {
-            f.push(self.eval(self.u_min + 0.5 * h * i as f64)?);
-        }
+        let us: Vec<f64> = (0..=2 * panels)
+            .map(|i| self.u_min + 0.5 * h * i as f64)
+            .collect();
+        let f = self.eval_batch(&us)?;
         let simpson = |a: &[f64], m: &[f64], b: &[f64]| -> Vec<f64> {
             (0..a.len())
                 .map(|j| h / 6.0 * (a[j] + 4.0 * m[j] + b[j]))
@@ -281,19 +323,19 @@ impl<'a> Integrator<'a> {
             self.unresolved = 0;
             self.panels.clear();
             let mut total = vec![0.0; self.scale.len()];
-            for (p, whole) in wholes.iter().enumerate() {
-                let a = self.u_min + h * p as f64;
-                // `b` is the next panel's `a` exactly, so the rule merges them.
-                let part = self.adapt(
-                    a,
-                    self.u_min + h * (p + 1) as f64,
-                    [&f[2 * p], &f[2 * p + 1], &f[2 * p + 2]],
-                    whole,
-                    0,
-                )?;
-                for (t, v) in total.iter_mut().zip(&part) {
-                    *t += v;
-                }
+            for window in (0..panels).collect::<Vec<_>>().chunks(WINDOW) {
+                let level = window
+                    .iter()
+                    .map(|&p| Panel {
+                        a: self.u_min + h * p as f64,
+                        // `b` is the next panel's `a` exactly, so the rule merges them.
+                        b: self.u_min + h * (p + 1) as f64,
+                        f: [f[2 * p].clone(), f[2 * p + 1].clone(), f[2 * p + 2].clone()],
+                        whole: wholes[p].clone(),
+                        depth: 0,
+                    })
+                    .collect();
+                self.adapt(level, &mut total)?;
             }
             if self.rel_error_estimate() <= self.rel_tol || floor_depth >= MAX_DEPTH {
                 return Ok(total);
@@ -312,46 +354,70 @@ impl<'a> Integrator<'a> {
             .fold(0.0, f64::max)
     }
 
-    fn adapt(
-        &mut self,
-        a: f64,
-        b: f64,
-        [fa, fm, fb]: [&[f64]; 3],
-        whole: &[f64],
-        depth: u32,
-    ) -> Result<Vec<f64>, PhysicsError> {
-        let m = 0.5 * (a + b);
-        let flm = self.eval(0.5 * (a + m))?;
-        let frm = self.eval(0.5 * (m + b))?;
-        let w = (b - a) / 12.0;
-        let n = whole.len();
-        let left: Vec<f64> = (0..n).map(|j| w * (fa[j] + 4.0 * flm[j] + fm[j])).collect();
-        let right: Vec<f64> = (0..n).map(|j| w * (fm[j] + 4.0 * frm[j] + fb[j])).collect();
-        // |S_left + S_right − S_whole| ≈ 15 × error; the allowance is
-        // proportional to the panel's share of the u range, but not below
-        // that of a panel `floor_depth` levels down (see `integrate`).
-        let share = ((b - a) / (self.u_max - self.u_min)).max(self.share_floor);
-        let ok = (0..n).all(|j| {
-            let d = (left[j] + right[j] - whole[j]).abs();
-            d <= 15.0 * self.rel_tol * share * self.scale[j]
-        });
-        if ok || depth >= MAX_DEPTH {
-            if !ok {
-                self.unresolved += 1;
-            }
-            self.panels.push((a, b));
-            let out: Vec<f64> = (0..n)
-                .map(|j| {
-                    let d = left[j] + right[j] - whole[j];
-                    self.err[j] += d.abs() / 15.0;
-                    left[j] + right[j] + d / 15.0
+    /// Adaptive Simpson on the panels of `open`: up to [`BATCH_PANELS`]
+    /// open panels at a time are bisected, their new nodes evaluated as one
+    /// batch, and the halves that miss the test go back on the stack. Each
+    /// panel's test depends on its own values only, so the panels accepted
+    /// are those of a depth-first recursion, and the stack (at most
+    /// `BATCH_PANELS` per level of depth) bounds the memory. Accepted panels
+    /// add their Richardson-corrected sums to `total`.
+    fn adapt(&mut self, mut open: Vec<Panel>, total: &mut [f64]) -> Result<(), PhysicsError> {
+        while !open.is_empty() {
+            let level = open.split_off(open.len().saturating_sub(BATCH_PANELS));
+            let us: Vec<f64> = level
+                .iter()
+                .flat_map(|p| {
+                    let m = 0.5 * (p.a + p.b);
+                    [0.5 * (p.a + m), 0.5 * (m + p.b)]
                 })
                 .collect();
-            return Ok(out);
+            let new = self.eval_batch(&us)?;
+            for (p, pair) in level.into_iter().zip(new.chunks(2)) {
+                let (flm, frm) = (pair[0].clone(), pair[1].clone());
+                let [fa, fm, fb] = p.f;
+                let m = 0.5 * (p.a + p.b);
+                let w = (p.b - p.a) / 12.0;
+                let n = p.whole.len();
+                let left: Vec<f64> = (0..n).map(|j| w * (fa[j] + 4.0 * flm[j] + fm[j])).collect();
+                let right: Vec<f64> = (0..n).map(|j| w * (fm[j] + 4.0 * frm[j] + fb[j])).collect();
+                // |S_left + S_right − S_whole| ≈ 15 × error; the allowance is
+                // proportional to the panel's share of the u range, but not
+                // below that of a panel `floor_depth` levels down (see
+                // `integrate`).
+                let share = ((p.b - p.a) / (self.u_max - self.u_min)).max(self.share_floor);
+                let ok = (0..n).all(|j| {
+                    let d = (left[j] + right[j] - p.whole[j]).abs();
+                    d <= 15.0 * self.rel_tol * share * self.scale[j]
+                });
+                if ok || p.depth >= MAX_DEPTH {
+                    if !ok {
+                        self.unresolved += 1;
+                    }
+                    self.panels.push((p.a, p.b));
+                    for j in 0..n {
+                        let d = left[j] + right[j] - p.whole[j];
+                        self.err[j] += d.abs() / 15.0;
+                        total[j] += left[j] + right[j] + d / 15.0;
+                    }
+                    continue;
+                }
+                open.push(Panel {
+                    a: p.a,
+                    b: m,
+                    f: [fa, flm, fm.clone()],
+                    whole: left,
+                    depth: p.depth + 1,
+                });
+                open.push(Panel {
+                    a: m,
+                    b: p.b,
+                    f: [fm, frm, fb],
+                    whole: right,
+                    depth: p.depth + 1,
+                });
+            }
         }
-        let l = self.adapt(a, m, [fa, &flm, fm], &left, depth + 1)?;
-        let r = self.adapt(m, b, [fm, &frm, fb], &right, depth + 1)?;
-        Ok(l.iter().zip(&r).map(|(x, y)| x + y).collect())
+        Ok(())
     }
 
     pub(super) fn finish(&self, t: &[f64]) -> BulkOptics {
@@ -384,6 +450,12 @@ impl<'a> Integrator<'a> {
             unresolved_panels: self.unresolved,
         }
     }
+}
+
+/// Series length an [`AmplitudeTable`] needs for spheres up to `x_max`
+/// (two terms of margin for the rounding of `k r` at the upper cut).
+pub(super) fn table_terms(x_max: f64) -> usize {
+    mie::series_length(x_max.min(mie::SIZE_PARAMETER_MAX)) + 2
 }
 
 fn sum_vecs<'v>(n: usize, vs: impl Iterator<Item = &'v Vec<f64>>) -> Vec<f64> {

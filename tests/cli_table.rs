@@ -377,3 +377,53 @@ fn corrupted_tables_are_rejected() {
         "0",
     ]);
 }
+
+/// Every number a user can print is a value (issue 20): `--phi-i -1.5e-05`
+/// gives what `--phi-i=-1.5e-05` gives, and a negative number outside the
+/// range reaches the range check, not clap's unknown-flag error.
+#[test]
+fn eval_takes_negative_numbers_in_scientific_notation() {
+    let d = scratch_dir("cli-table-negative");
+    let mut spec = tio2(&[550.0]);
+    spec["solver"] = json!({"streams": 8});
+    let table = table_of(&d, &spec);
+    let spaced = ok(&[
+        "eval",
+        &table,
+        "--theta-i",
+        "30",
+        "--phi-i",
+        "-1.5e-05",
+        "--theta-o",
+        "40",
+        "--phi-o",
+        "-1.8E+2",
+    ]);
+    let joined = ok(&[
+        "eval",
+        &table,
+        "--theta-i=30",
+        "--phi-i=-1.5e-05",
+        "--theta-o=40",
+        "--phi-o=-180",
+    ]);
+    assert_eq!(spaced["mueller"], joined["mueller"]);
+    assert!(spaced["mueller"][0][0].as_f64().unwrap() > 0.0);
+    let (code, _, err) = run(&[
+        "eval",
+        &table,
+        "--theta-i",
+        "30",
+        "--phi-i",
+        "-1e+3",
+        "--theta-o",
+        "40",
+        "--phi-o",
+        "0",
+    ]);
+    assert_ne!(code, 0);
+    assert!(
+        err.contains("phi") && !err.contains("unexpected argument"),
+        "{err}"
+    );
+}

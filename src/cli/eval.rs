@@ -12,16 +12,16 @@ pub struct EvalArgs {
     /// A table written by `polbrdf solve SPEC --table OUT`, or a service result URL (`http://HOST:PORT/v1/brdfs/ID`).
     pub table: String,
     /// Incident polar angle (deg, [0, 90]; graphics convention).
-    #[arg(long, allow_negative_numbers = true)]
+    #[arg(long)]
     pub theta_i: f64,
     /// Incident azimuth (deg, [-360, 360]).
-    #[arg(long, allow_negative_numbers = true)]
+    #[arg(long)]
     pub phi_i: f64,
     /// Outgoing polar angle (deg, [0, 90]).
-    #[arg(long, allow_negative_numbers = true)]
+    #[arg(long)]
     pub theta_o: f64,
     /// Outgoing azimuth (deg, [-360, 360]).
-    #[arg(long, allow_negative_numbers = true)]
+    #[arg(long)]
     pub phi_o: f64,
     /// Vacuum wavelength (nm) inside the table's range (linear between
     /// wavelengths); may be omitted for a one-wavelength table.

@@ -96,40 +96,35 @@ pub struct MieArgs {
     #[arg(long, value_name = "FILE", conflicts_with_all = ["material", "n", "k"])]
     material_table: Option<std::path::PathBuf>,
     /// Particle refractive index, real part (> 0); requires --k, excludes --material.
-    #[arg(long, allow_negative_numbers = true)]
+    #[arg(long)]
     n: Option<f64>,
     /// Particle refractive index, imaginary part (>= 0 absorbs); requires --n.
-    #[arg(long, allow_negative_numbers = true)]
+    #[arg(long)]
     k: Option<f64>,
     /// Vacuum wavelength in nm (required).
-    #[arg(long, allow_negative_numbers = true)]
+    #[arg(long)]
     wavelength_nm: Option<f64>,
     /// Real refractive index of the host / binder (>= 1).
-    #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 1.0)]
     host_index: f64,
     /// Sphere radius in µm (one sphere).
-    #[arg(long, allow_negative_numbers = true)]
+    #[arg(long)]
     radius_um: Option<f64>,
     /// Log-normal size distribution: geometric mean radius r_g in µm.
-    #[arg(long, allow_negative_numbers = true)]
+    #[arg(long)]
     lognormal_rg_um: Option<f64>,
     /// Log-normal size distribution: geometric standard deviation sigma_g (> 1).
-    #[arg(long, allow_negative_numbers = true)]
+    #[arg(long)]
     lognormal_sigma: Option<f64>,
     /// Gamma size distribution (Hansen & Travis): effective radius in µm.
-    #[arg(long, allow_negative_numbers = true)]
+    #[arg(long)]
     gamma_reff_um: Option<f64>,
     /// Gamma size distribution: effective variance in (0, 0.5).
-    #[arg(long, allow_negative_numbers = true)]
+    #[arg(long)]
     gamma_veff: Option<f64>,
     /// Scattering angles in degrees, within [0, 180], comma-separated: print
     /// the scattering matrix there.
-    #[arg(
-        long,
-        value_delimiter = ',',
-        allow_hyphen_values = true,
-        value_name = "DEG,..."
-    )]
+    #[arg(long, value_delimiter = ',', value_name = "DEG,...")]
     angles_deg: Option<Vec<f64>>,
     /// Size distribution only: explicit lower limit of the radius integral
     /// in µm (requires --radius-max-um; default: the tail cuts of physics::psd)
@@ -141,7 +136,7 @@ pub struct MieArgs {
     radius_max_um: Option<f64>,
     /// Truncation tolerance of the Greek expansion, in (0, 1) (default:
     /// 1e-10 for x < 20, relaxed for larger particles).
-    #[arg(long, allow_negative_numbers = true)]
+    #[arg(long)]
     expansion_tolerance: Option<f64>,
 }
 

@@ -15,7 +15,8 @@ pub mod serve;
 pub mod solve;
 pub mod source;
 
-use clap::{Parser, Subcommand};
+use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
+use std::any::TypeId;
 
 /// polbrdf: polarized BRDFs of paints, coatings and powders.
 #[derive(Debug, Parser)]
@@ -76,9 +77,50 @@ enum Command {
     Bench(bench::BenchCommand),
 }
 
+/// The command line: the derived parser, with every numeric option taking a
+/// value that starts with `-`. clap's own negative-number test knows no
+/// exponent (`--phi-i -1.5e-05` would be read as an unknown flag `-1`); with
+/// hyphen values allowed every number a user can print reaches the number
+/// parser, and `-inf` or `-1e400` reach the range checks and their errors.
+/// A forgotten value (`--phi-i --theta-o 30`) is then an invalid number
+/// `--theta-o` for `--phi-i`, still a clear refusal.
+pub fn command() -> clap::Command {
+    numeric_options_take_hyphen_values(Cli::command())
+}
+
+fn numeric_options_take_hyphen_values(cmd: clap::Command) -> clap::Command {
+    cmd.mut_args(|arg| {
+        if is_numeric_option(&arg) {
+            arg.allow_hyphen_values(true)
+        } else {
+            arg
+        }
+    })
+    .mut_subcommands(numeric_options_take_hyphen_values)
+}
+
+/// An option (not a positional argument) whose values parse as a number.
+fn is_numeric_option(arg: &clap::Arg) -> bool {
+    let numeric = [
+        TypeId::of::<f64>(),
+        TypeId::of::<f32>(),
+        TypeId::of::<i64>(),
+        TypeId::of::<i32>(),
+        TypeId::of::<isize>(),
+        TypeId::of::<u64>(),
+        TypeId::of::<u32>(),
+        TypeId::of::<usize>(),
+    ];
+    let takes_values = arg.get_num_args().is_none_or(|n| n.takes_values());
+    let value_type = arg.get_value_parser().type_id();
+    (arg.get_long().is_some() || arg.get_short().is_some())
+        && takes_values
+        && numeric.iter().any(|t| value_type == *t)
+}
+
 /// Parse arguments, run, and return the process exit code.
 pub fn main() -> i32 {
-    let cli = Cli::parse();
+    let cli = Cli::from_arg_matches(&command().get_matches()).unwrap_or_else(|e| e.exit());
     let result = match cli.command {
         Command::Mie(args) => mie::run(&args),
         Command::Solve(a) => solve::run(&a),
@@ -109,5 +151,86 @@ pub fn main() -> i32 {
             eprintln!("polbrdf: {e}");
             2
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every numeric option of every subcommand, as `path --long`.
+    fn numeric_options(cmd: &clap::Command, path: &str, out: &mut Vec<(String, bool)>) {
+        for arg in cmd.get_arguments().filter(|a| is_numeric_option(a)) {
+            let name = arg.get_long().unwrap_or_default();
+            out.push((format!("{path} --{name}"), arg.is_allow_hyphen_values_set()));
+        }
+        for sub in cmd.get_subcommands() {
+            numeric_options(sub, &format!("{path} {}", sub.get_name()), out);
+        }
+    }
+
+    #[test]
+    fn every_numeric_option_takes_values_starting_with_a_hyphen() {
+        let mut found = Vec::new();
+        numeric_options(&command(), "polbrdf", &mut found);
+        for wanted in [
+            "polbrdf eval --phi-i",
+            "polbrdf mie --wavelength-nm",
+            "polbrdf solve --max-streams",
+        ] {
+            assert!(
+                found.iter().any(|(n, _)| n == wanted),
+                "{wanted} not seen as numeric"
+            );
+        }
+        let refused: Vec<&String> = found.iter().filter(|(_, h)| !h).map(|(n, _)| n).collect();
+        assert!(refused.is_empty(), "{refused:?}");
+    }
+
+    #[test]
+    fn negative_numbers_in_every_notation_parse() {
+        for (value, want) in [
+            ("-1.5e-05", -1.5e-5),
+            ("-2E+1", -20.0),
+            ("-45", -45.0),
+            ("-.5", -0.5),
+            ("-0", 0.0),
+        ] {
+            let argv = [
+                "polbrdf",
+                "eval",
+                "t.pbrdf",
+                "--theta-i",
+                "30",
+                "--phi-i",
+                value,
+                "--theta-o",
+                "10",
+                "--phi-o",
+                value,
+            ];
+            let m = command().try_get_matches_from(argv).expect(value);
+            let cli = Cli::from_arg_matches(&m).unwrap();
+            let Command::Eval(a) = cli.command else {
+                panic!("not eval")
+            };
+            assert_eq!((a.phi_i, a.phi_o), (want, want), "{value}");
+        }
+        // A forgotten value is still refused, naming the option.
+        let argv = [
+            "polbrdf",
+            "eval",
+            "t",
+            "--theta-i",
+            "30",
+            "--phi-i",
+            "--theta-o",
+            "1",
+        ];
+        let err = command()
+            .try_get_matches_from(argv)
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("--phi-i"), "{err}");
     }
 }

@@ -104,18 +104,13 @@ pub struct DopVsMuArgs {
     #[arg(long)]
     pub table: Option<String>,
     /// Optical thicknesses of the top layer, one curve each (default: the spec's own), e.g. 0.1,0.5,1,10 or "infinite".
-    #[arg(long, allow_negative_numbers = true)]
+    #[arg(long)]
     pub taus: Option<String>,
     /// Cosine of the incident polar angle, (0, 1].
     #[arg(long, default_value_t = 0.6)]
     pub mu0: f64,
     /// Outgoing azimuths (deg, φ_i = 0): 180 = mirror side of the plane of incidence, 0 = backscattering side.
-    #[arg(
-        long,
-        value_delimiter = ',',
-        allow_negative_numbers = true,
-        default_value = "180"
-    )]
+    #[arg(long, value_delimiter = ',', default_value = "180")]
     pub phi_o_deg: Vec<f64>,
     /// Incident Stokes irradiance I:Q:U:V (conventions §5 frames).
     #[arg(long, default_value = "1:0:0:0")]
@@ -134,7 +129,7 @@ pub struct DopVsTauArgs {
     /// Material spec (docs/spec.md); its top layer's thickness is varied.
     pub spec: String,
     /// Optical thicknesses, e.g. 0.01,0.1,1,10 (instead of --tau-range).
-    #[arg(long, conflicts_with = "tau_range", allow_negative_numbers = true)]
+    #[arg(long, conflicts_with = "tau_range")]
     pub taus: Option<String>,
     /// Log-spaced thickness range LO:HI (the semi-infinite layer is added for one-layer specs).
     #[arg(long, default_value = "0.001:1000")]
@@ -149,7 +144,7 @@ pub struct DopVsTauArgs {
     #[arg(long, default_value_t = 1.0)]
     pub mu: f64,
     /// Outgoing azimuth (deg, φ_i = 0; 180 = mirror side).
-    #[arg(long, allow_negative_numbers = true, default_value_t = 180.0)]
+    #[arg(long, default_value_t = 180.0)]
     pub phi_o_deg: f64,
     /// Incident Stokes vectors I:Q:U:V, comma separated (default: the four of
     /// Fig. 4 of Collin et al. 2014).
@@ -173,7 +168,7 @@ pub struct ScalarErrorArgs {
     #[arg(long, default_value = "0.9:1.0,0.6:0.6")]
     pub pairs: String,
     /// Optical thicknesses, e.g. 0.01,0.1,1,10 (instead of --tau-range).
-    #[arg(long, conflicts_with = "tau_range", allow_negative_numbers = true)]
+    #[arg(long, conflicts_with = "tau_range")]
     pub taus: Option<String>,
     /// Log-spaced thickness range LO:HI.
     #[arg(long, default_value = "0.0001:1000")]
@@ -182,7 +177,7 @@ pub struct ScalarErrorArgs {
     #[arg(long, default_value_t = 6)]
     pub per_decade: usize,
     /// Outgoing azimuth (deg, φ_i = 0; 180 = mirror side).
-    #[arg(long, allow_negative_numbers = true, default_value_t = 180.0)]
+    #[arg(long, default_value_t = 180.0)]
     pub phi_o_deg: f64,
     #[command(flatten)]
     pub solve: SolveArgs,

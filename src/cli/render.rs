@@ -41,7 +41,7 @@ pub struct RenderArgs {
     pub max_bounces: Option<u32>,
     /// Put a linear polarizer in front of the camera at this angle
     /// (degrees from the image's right towards its up).
-    #[arg(long, allow_hyphen_values = true)]
+    #[arg(long)]
     pub polarizer_deg: Option<f64>,
     /// Channel wavelengths, one or three, comma-separated (nm).
     #[arg(long, value_delimiter = ',')]

@@ -23,7 +23,7 @@ pub struct SpectrumArgs {
     #[arg(long, default_value_t = 0.0)]
     pub theta_o: f64,
     /// Viewing azimuth (deg, φ_i = 0; 180 = mirror side).
-    #[arg(long, allow_negative_numbers = true, default_value_t = 180.0)]
+    #[arg(long, default_value_t = 180.0)]
     pub phi_o_deg: f64,
     #[command(flatten)]
     pub solve: SolveArgs,

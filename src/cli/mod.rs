@@ -187,6 +187,29 @@ mod tests {
         assert!(refused.is_empty(), "{refused:?}");
     }
 
+    /// Options whose value is a list of numbers in a string of our own
+    /// syntax (parsed by `plot::parse_*`) take values starting with `-` too,
+    /// so that `--taus -1` reaches the range check and its message.
+    #[test]
+    fn number_list_options_take_values_starting_with_a_hyphen() {
+        let cmd = command();
+        for (sub, option) in [
+            ("dop-vs-mu", "taus"),
+            ("dop-vs-tau", "taus"),
+            ("dop-vs-tau", "tau-range"),
+            ("scalar-error", "taus"),
+            ("scalar-error", "tau-range"),
+            ("scalar-error", "pairs"),
+        ] {
+            let plot = cmd.find_subcommand("plot").expect("plot");
+            let arg = plot
+                .find_subcommand(sub)
+                .and_then(|c| c.get_arguments().find(|a| a.get_long() == Some(option)))
+                .unwrap_or_else(|| panic!("plot {sub} --{option}"));
+            assert!(arg.is_allow_hyphen_values_set(), "plot {sub} --{option}");
+        }
+    }
+
     #[test]
     fn negative_numbers_in_every_notation_parse() {
         for (value, want) in [

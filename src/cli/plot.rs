@@ -104,7 +104,7 @@ pub struct DopVsMuArgs {
     #[arg(long)]
     pub table: Option<String>,
     /// Optical thicknesses of the top layer, one curve each (default: the spec's own), e.g. 0.1,0.5,1,10 or "infinite".
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true)]
     pub taus: Option<String>,
     /// Cosine of the incident polar angle, (0, 1].
     #[arg(long, default_value_t = 0.6)]
@@ -129,10 +129,10 @@ pub struct DopVsTauArgs {
     /// Material spec (docs/spec.md); its top layer's thickness is varied.
     pub spec: String,
     /// Optical thicknesses, e.g. 0.01,0.1,1,10 (instead of --tau-range).
-    #[arg(long, conflicts_with = "tau_range")]
+    #[arg(long, conflicts_with = "tau_range", allow_hyphen_values = true)]
     pub taus: Option<String>,
     /// Log-spaced thickness range LO:HI (the semi-infinite layer is added for one-layer specs).
-    #[arg(long, default_value = "0.001:1000")]
+    #[arg(long, allow_hyphen_values = true, default_value = "0.001:1000")]
     pub tau_range: String,
     /// Thicknesses per decade in --tau-range.
     #[arg(long, default_value_t = 6)]
@@ -165,13 +165,13 @@ pub struct ScalarErrorArgs {
     #[arg(long, value_delimiter = ',')]
     pub labels: Vec<String>,
     /// Direction pairs μ0:μ (incident:outgoing cosines), comma separated.
-    #[arg(long, default_value = "0.9:1.0,0.6:0.6")]
+    #[arg(long, allow_hyphen_values = true, default_value = "0.9:1.0,0.6:0.6")]
     pub pairs: String,
     /// Optical thicknesses, e.g. 0.01,0.1,1,10 (instead of --tau-range).
-    #[arg(long, conflicts_with = "tau_range")]
+    #[arg(long, conflicts_with = "tau_range", allow_hyphen_values = true)]
     pub taus: Option<String>,
     /// Log-spaced thickness range LO:HI.
-    #[arg(long, default_value = "0.0001:1000")]
+    #[arg(long, allow_hyphen_values = true, default_value = "0.0001:1000")]
     pub tau_range: String,
     /// Thicknesses per decade in --tau-range.
     #[arg(long, default_value_t = 6)]

@@ -188,6 +188,117 @@ pub fn mueller_from_coefficients(r_p: C64, r_s: C64) -> Mueller {
     ]
 }
 
+/// Fresnel amplitude transmission coefficients of a dielectric interface
+/// (both indices real) in the meridian frames of the incident and the
+/// refracted directions (module doc; the frames of both are `e_ϑ`, `e_ϕ` of
+/// their own propagation direction, from either side):
+///
+/// ```text
+/// t_p = 2 n1 μ / (n2 μ + n1 μ_t),   t_s = 2 n1 μ / (n1 μ + n2 μ_t),
+/// n2 μ_t = √(n2² − n1² (1 − μ²))   (Snell; Born & Wolf §1.5.2, eq. 20)
+/// ```
+///
+/// the same continuity of `E_x`, `H_y` (p) and `E_y`, `H_x` (s) that gives
+/// [`coefficients`], for light going down or up (the equations are the same
+/// up to a common sign). `None` beyond the critical angle (`n1 > n2`, total
+/// internal reflection: no transmitted wave).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Transmission {
+    /// p (in the plane of incidence) amplitude coefficient.
+    pub t_p: f64,
+    /// s (perpendicular) amplitude coefficient.
+    pub t_s: f64,
+    /// Cosine of the refracted direction.
+    pub mu_t: f64,
+}
+
+impl Transmission {
+    /// Flux transmittance `T = (n2 μ_t / n1 μ) (|t_p|² + |t_s|²)/2` of
+    /// unpolarized light (the power through a patch of the interface; `R +
+    /// T = 1`).
+    pub fn transmittance(&self, n1: f64, n2: f64, mu: f64) -> f64 {
+        n2 * self.mu_t / (n1 * mu) * 0.5 * (self.t_p * self.t_p + self.t_s * self.t_s)
+    }
+}
+
+/// [`Transmission`] for real indices `n1` (incident side) and `n2` (`n1 =
+/// 1.5`, `n2 = 1` is binder to air) and incidence cosine `mu ∈ (0, 1]`.
+///
+/// # Errors
+/// [`PhysicsError::OutOfRange`] naming `n1`, `n2` or `mu`.
+pub fn transmission(n1: f64, n2: f64, mu: f64) -> Result<Option<Transmission>, PhysicsError> {
+    for (name, v) in [("n1", n1), ("n2", n2)] {
+        if !(v.is_finite() && v > 0.0) {
+            return Err(out_of_range(name, v, "(0, ∞) (real index)"));
+        }
+    }
+    if !(mu.is_finite() && mu > 0.0 && mu <= 1.0 + 1e-12) {
+        return Err(out_of_range("mu", mu, "(0, 1]"));
+    }
+    let mu = mu.min(1.0);
+    let w2 = n2 * n2 - n1 * n1 * (1.0 - mu * mu);
+    if w2 <= 0.0 {
+        return Ok(None);
+    }
+    let w = w2.sqrt();
+    Ok(Some(Transmission {
+        t_p: 2.0 * n1 * mu / (n2 * mu + n1 * w / n2),
+        t_s: 2.0 * n1 * mu / (n1 * mu + w),
+        mu_t: w / n2,
+    }))
+}
+
+/// Mueller matrix of the real Jones matrix `diag(t_p, t_s)` (the form of
+/// [`mueller_from_coefficients`] with no phase).
+fn real_jones_mueller(t_p: f64, t_s: f64) -> Mueller {
+    let (a, b) = (t_p * t_p, t_s * t_s);
+    let (m11, m12, m33) = (0.5 * (a + b), 0.5 * (a - b), t_p * t_s);
+    [
+        [m11, m12, 0.0, 0.0],
+        [m12, m11, 0.0, 0.0],
+        [0.0, 0.0, m33, 0.0],
+        [0.0, 0.0, 0.0, m33],
+    ]
+}
+
+/// The transmitted collimated beam: its Stokes vector of irradiance normal
+/// to the beam from the incident beam's, `(n2/n1) M(t)` (irradiance in a
+/// medium of index `n` is `∝ n |E|²`). Its flux through the interface is
+/// `μ_t` times that, the transmitted part of `μ` times the incident one.
+/// The zero matrix beyond the critical angle. Arguments as [`transmission`].
+pub fn beam_transmission_mueller(n1: f64, n2: f64, mu: f64) -> Result<Mueller, PhysicsError> {
+    Ok(match transmission(n1, n2, mu)? {
+        Some(t) => scale(real_jones_mueller(t.t_p, t.t_s), n2 / n1),
+        None => [[0.0; 4]; 4],
+    })
+}
+
+/// Radiance across the interface: the Stokes radiance refracted into `μ_t`
+/// from the incident radiance along `μ`, `(n2/n1)³ (μ_t/μ) M(t)`: the beam
+/// map of [`beam_transmission_mueller`] divided by the solid-angle ratio
+/// `dΩ_t/dΩ = (n1/n2)² μ/μ_t` (Snell in solid angle, `n² μ dΩ` conserved).
+/// Its unpolarized element is `(n2/n1)² T`: radiance over `n²` is
+/// transmitted as flux (the `n²` law, docs/conventions.md). The zero matrix
+/// beyond the critical angle. Arguments as [`transmission`].
+pub fn radiance_transmission_mueller(n1: f64, n2: f64, mu: f64) -> Result<Mueller, PhysicsError> {
+    Ok(match transmission(n1, n2, mu)? {
+        Some(t) => scale(
+            real_jones_mueller(t.t_p, t.t_s),
+            (n2 / n1).powi(3) * t.mu_t / mu.min(1.0),
+        ),
+        None => [[0.0; 4]; 4],
+    })
+}
+
+fn scale(mut m: Mueller, f: f64) -> Mueller {
+    for row in &mut m {
+        for x in row.iter_mut() {
+            *x *= f;
+        }
+    }
+    m
+}
+
 fn out_of_range(name: &'static str, value: f64, range: &str) -> PhysicsError {
     PhysicsError::OutOfRange {
         name,
@@ -449,5 +560,72 @@ mod tests {
         // k = −0.0 is accepted and treated as a dielectric (TIR branch intact).
         let c = coefficients(1.5, ri(1.0, -0.0), 0.1).unwrap();
         assert!((c.r_s.norm() - 1.0).abs() < 1e-14);
+    }
+
+    /// Energy across a dielectric interface, from both sides and for each
+    /// incident Stokes vector: the reflected flux `μ R·S` plus the
+    /// transmitted beam's flux `μ_t T_beam·S` equals the incident `μ S_0`;
+    /// beyond the critical angle nothing is transmitted and `|r| = 1`.
+    #[test]
+    fn transmission_conserves_flux_from_both_sides() {
+        for (n1, n2) in [(1.0, 1.5), (1.5, 1.0), (1.0, 2.6), (1.33, 1.0)] {
+            for mu in [1.0, 0.9, 0.5, 0.2, 0.05, 1e-3] {
+                let r = mueller(n1, ri(n2, 0.0), mu).unwrap();
+                let tb = beam_transmission_mueller(n1, n2, mu).unwrap();
+                let mu_t = transmission(n1, n2, mu).unwrap().map_or(0.0, |t| t.mu_t);
+                for j in 0..4 {
+                    let flux = mu * r[0][j] + mu_t * tb[0][j];
+                    let want = if j == 0 { mu } else { 0.0 };
+                    assert!((flux - want).abs() < 1e-14, "{n1} {n2} {mu} {j}: {flux}");
+                }
+            }
+        }
+        // Critical angle of 1.5 → 1: μ_c = √(1 − 1/2.25).
+        let mu_c = (1.0 - 1.0 / 2.25f64).sqrt();
+        assert!(transmission(1.5, 1.0, mu_c - 1e-9).unwrap().is_none());
+        assert!(transmission(1.5, 1.0, mu_c + 1e-9).unwrap().is_some());
+    }
+
+    /// Normal incidence `t = 2 n1/(n1 + n2)` for both polarizations; Brewster
+    /// angle: `r_p = 0`, so p-light is transmitted in full (`T_p = 1`).
+    #[test]
+    fn transmission_normal_incidence_and_brewster() {
+        let t = transmission(1.0, 1.5, 1.0).unwrap().unwrap();
+        assert!((t.t_p - 0.8).abs() < 1e-15 && (t.t_s - 0.8).abs() < 1e-15);
+        assert!((t.transmittance(1.0, 1.5, 1.0) - 0.96).abs() < 1e-15);
+        for (n1, n2) in [(1.0f64, 1.5f64), (1.5, 1.0)] {
+            let mu_b = (n2 / n1).atan().cos();
+            let t = transmission(n1, n2, mu_b).unwrap().unwrap();
+            let tp = n2 * t.mu_t / (n1 * mu_b) * t.t_p * t.t_p;
+            assert!((tp - 1.0).abs() < 1e-14, "{n1} → {n2}: T_p = {tp}");
+        }
+    }
+
+    /// Reciprocity of refraction: the flux transmittance from 1 to 2 along
+    /// `μ` equals that from 2 to 1 along the refracted `μ_t`, element by
+    /// element of the Mueller matrices (the Stokes relation `n1 μ t₂₁ = n2
+    /// μ_t t₁₂`): `(n1/n2)² M_rad(1→2, μ) = (n2/n1)² M_rad(2→1, μ_t)ᵀ`, both
+    /// the flux transmittance matrix (the `n²` law of radiance).
+    #[test]
+    fn radiance_transmission_is_reciprocal_with_the_n_squared_law() {
+        for (n1, n2) in [(1.0, 1.5), (1.0, 2.4)] {
+            for mu in [1.0, 0.7, 0.3, 0.01] {
+                let t = transmission(n1, n2, mu).unwrap().unwrap();
+                let down = radiance_transmission_mueller(n1, n2, mu).unwrap();
+                let up = radiance_transmission_mueller(n2, n1, t.mu_t).unwrap();
+                let back = transmission(n2, n1, t.mu_t).unwrap().unwrap();
+                // μ_t = √(1 − n²(1 − μ²))/…: cancellation costs ~eps/μ² at grazing μ.
+                assert!((back.mu_t - mu).abs() < 1e-12);
+                for i in 0..4 {
+                    for j in 0..4 {
+                        let a = down[i][j] * (n1 / n2).powi(2);
+                        let b = up[j][i] * (n2 / n1).powi(2);
+                        assert!((a - b).abs() < 1e-11, "{mu} {i}{j}: {a} vs {b}");
+                    }
+                }
+                let unpolarized = down[0][0] * (n1 / n2).powi(2);
+                assert!((unpolarized - t.transmittance(n1, n2, mu)).abs() < 1e-14);
+            }
+        }
     }
 }

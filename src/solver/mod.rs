@@ -104,52 +104,14 @@ pub fn reflection_observed(
             }
         }
     };
-    // Orders in parallel batches; stop once two consecutive orders add less
-    // than `fourier_tolerance` of the largest BRDF coefficient of order 0
-    // (scaled by 1/μ0 as in the BRDF).
-    let batch = rayon::current_num_threads().max(1);
-    let scaled_max = |r: &Mat<f64>| -> f64 {
-        let mut v: f64 = 0.0;
-        for j in 0..r.ncols() {
-            let inv = 1.0 / grid.mu_u[j / ns];
-            for i in 0..r.nrows() {
-                let x = r[(i, j)];
-                if !x.is_finite() {
-                    return f64::NAN;
-                }
-                v = v.max(x.abs() * inv);
-            }
-        }
-        v
-    };
-    let mut rho: Vec<Mat<f64>> = Vec::new();
-    let mut reference = 0.0;
-    let mut small_run = 0;
-    'orders: while rho.len() < orders {
-        let lo = rho.len();
-        let hi = (lo + batch).min(orders);
-        let part: Vec<Mat<f64>> = (lo..hi).into_par_iter().map(one_order).collect();
-        for (k, r) in part.into_iter().enumerate() {
-            let size = scaled_max(&r);
-            if !size.is_finite() {
-                return Err(SolverError::NonFinite(format!("Fourier order {}", lo + k)));
-            }
-            if lo + k == 0 {
-                reference = size;
-            }
-            rho.push(r);
-            small_run = if size <= s.fourier_tolerance * reference {
-                small_run + 1
-            } else {
-                0
-            };
-            if small_run >= 2 {
-                break 'orders;
-            }
-        }
-        on_orders(rho.len(), orders);
-    }
-    on_orders(orders, orders);
+    let mut rho = fourier_orders(
+        orders,
+        s.fourier_tolerance,
+        ns,
+        &grid.mu_u,
+        one_order,
+        on_orders,
+    )?;
     let tau_total: f64 = original.layers.iter().map(|l| l.thickness.value()).sum();
     // The secondary-scattering correction of truncated layers is a Fourier
     // series at the user cosines: added to the solve's coefficients (all
@@ -177,4 +139,62 @@ pub fn reflection_observed(
         direct: grid.mu_u.iter().map(|m| (-tau_total / m).exp()).collect(),
         correction,
     })
+}
+
+/// The Fourier orders `0..orders` of a user-by-beam response, computed in
+/// parallel batches by `one_order`; stops once two consecutive orders add
+/// less than `fourier_tolerance` of the largest coefficient of order 0
+/// (each column scaled by `1/μ0` of its beam, `mu_beam`, as in the BRDF).
+fn fourier_orders(
+    orders: usize,
+    fourier_tolerance: f64,
+    ns: usize,
+    mu_beam: &[f64],
+    one_order: impl Fn(usize) -> Mat<f64> + Sync + Send,
+    on_orders: OnOrders,
+) -> Result<Vec<Mat<f64>>, SolverError> {
+    let batch = rayon::current_num_threads().max(1);
+    let scaled_max = |r: &Mat<f64>| -> f64 {
+        let mut v: f64 = 0.0;
+        for j in 0..r.ncols() {
+            let inv = 1.0 / mu_beam[j / ns];
+            for i in 0..r.nrows() {
+                let x = r[(i, j)];
+                if !x.is_finite() {
+                    return f64::NAN;
+                }
+                v = v.max(x.abs() * inv);
+            }
+        }
+        v
+    };
+    let mut rho: Vec<Mat<f64>> = Vec::new();
+    let mut reference = 0.0;
+    let mut small_run = 0;
+    'orders: while rho.len() < orders {
+        let lo = rho.len();
+        let hi = (lo + batch).min(orders);
+        let part: Vec<Mat<f64>> = (lo..hi).into_par_iter().map(&one_order).collect();
+        for (k, r) in part.into_iter().enumerate() {
+            let size = scaled_max(&r);
+            if !size.is_finite() {
+                return Err(SolverError::NonFinite(format!("Fourier order {}", lo + k)));
+            }
+            if lo + k == 0 {
+                reference = size;
+            }
+            rho.push(r);
+            small_run = if size <= fourier_tolerance * reference {
+                small_run + 1
+            } else {
+                0
+            };
+            if small_run >= 2 {
+                break 'orders;
+            }
+        }
+        on_orders(rho.len(), orders);
+    }
+    on_orders(orders, orders);
+    Ok(rho)
 }

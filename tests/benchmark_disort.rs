@@ -272,6 +272,7 @@ fn solve(data: &Value, test: &Value, num: Numerics) -> Outputs {
             start_factor: num.start_factor,
             ..Settings::default()
         },
+        top_interface: None,
     };
     // User directions: beam, |umu|, flux quadrature (duplicates skipped).
     let mut mu_user: Vec<f64> = Vec::new();
@@ -669,6 +670,7 @@ fn disort_3_4_5_reflected_intensities_with_delta_m_and_single_scattering_correct
                 start_factor: 0.01,
                 ..Settings::default()
             },
+            top_interface: None,
         };
         let up: Vec<f64> = umu.iter().copied().filter(|&m| m > 0.0).collect();
         let mut mu_user = up.clone();

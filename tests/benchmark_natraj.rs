@@ -55,6 +55,7 @@ fn natraj_rayleigh_tables_reflection_and_transmission() {
                     streams: 32,
                     ..Settings::default()
                 },
+                top_interface: None,
             };
             let field = internal_field(&problem, &mu_user, &[0.0, tau]).expect("solve");
             for (dir, level, upward) in [("UP", 0usize, true), ("DN", 1usize, false)] {

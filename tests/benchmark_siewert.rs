@@ -35,6 +35,7 @@ fn siewert_problem_iia_all_depths_and_directions() {
             streams: 24,
             ..Settings::default()
         },
+        top_interface: None,
     };
     let field = internal_field(&problem, &mu_user, &taus).expect("solve");
     let mut worst_i = Worst::default();

@@ -72,6 +72,7 @@ fn problem(layers: Vec<Layer>, base: Base, streams: usize) -> Problem {
             streams,
             ..Settings::default()
         },
+        top_interface: None,
     }
 }
 

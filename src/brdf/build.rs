@@ -86,6 +86,14 @@ pub fn build_wavelength(
     let total = plan.wavelengths.len();
     let lowered = &plan.wavelengths[k];
     let (wl, problem) = (lowered.wavelength_nm, &lowered.problem);
+    if problem.top_interface.is_some() {
+        // The table format has no place yet for the interface's delta term
+        // and maps (the single-scattering correction is stored inside the
+        // binder).
+        return Err(BrdfError::Solver(solver::SolverError::Invalid(
+            "tables under a top interface are not supported yet".into(),
+        )));
+    }
     let t0 = Instant::now();
     let progress = |x: f64| (options.on_progress)(k, total, x);
     // A grid other than the default (`needs.grid.polar_nodes`) is also

@@ -126,6 +126,7 @@ impl StoredCorrection {
                 polarized,
                 mirror: mirror.map(|(depth, n1, n2)| (plan::fresnel_mirror(n1, n2), depth)),
                 streams,
+                quadrature_split: None,
             },
             mirror_indices: mirror.map(|(_, n1, n2)| (n1, n2)),
         }

@@ -235,6 +235,7 @@ fn tio2_problem(streams: usize, start_factor: f64) -> Result<Problem, String> {
             start_factor,
             ..Settings::default()
         },
+        top_interface: None,
     })
 }
 

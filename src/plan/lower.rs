@@ -183,6 +183,7 @@ pub fn problem(spec: &Spec, wavelength_nm: Option<f64>) -> Result<Problem, SpecE
         layers,
         base,
         settings: settings(spec),
+        top_interface: None,
     })
 }
 

@@ -496,6 +496,7 @@ mod tests {
                 streams: 8,
                 ..Settings::default()
             },
+            top_interface: None,
         }
     }
 

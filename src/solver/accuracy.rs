@@ -572,6 +572,7 @@ mod tests {
             }],
             base: Base::Black,
             settings: Settings::default(),
+            top_interface: None,
         };
         let (small, fits) = ((terms - 1) / 2, terms.div_ceil(2));
         assert!(crate::solver::truncation::truncates(&problem, small));
@@ -603,6 +604,7 @@ mod tests {
                 polarized: false,
                 ..Settings::default()
             },
+            top_interface: None,
         };
         assert!(truncation_dominated(&problem, 4));
         let mu = [0.3, 0.7, 1.0];

@@ -76,6 +76,11 @@ pub fn internal_field(
     depths: &[f64],
 ) -> Result<FieldFourier, SolverError> {
     validate(problem, mu_user)?;
+    if problem.top_interface.is_some() {
+        return Err(SolverError::Invalid(
+            "the internal field under a top interface is not supported yet".into(),
+        ));
+    }
     if matches!(problem.base, Base::Mirror { .. }) {
         return Err(SolverError::Invalid(
             "the internal field is not available over a mirror base".into(),

@@ -39,6 +39,11 @@ pub struct StreamFluxes {
 /// and albedo; the truncated forward peak travels with the direct beam).
 pub fn stream_fluxes(problem: &Problem, mu0: &[f64]) -> Result<StreamFluxes, SolverError> {
     validate(problem, mu0)?;
+    if problem.top_interface.is_some() {
+        return Err(SolverError::Invalid(
+            "stream fluxes under a top interface is not supported yet".into(),
+        ));
+    }
     let truncated = truncate(problem)?;
     let problem = truncated.as_ref().map_or(problem, |t| &t.problem);
     let s = &problem.settings;

@@ -54,6 +54,7 @@ fn problem(
             streams,
             ..Settings::default()
         },
+        top_interface: None,
     }
 }
 

@@ -24,6 +24,9 @@ pub mod accuracy;
 mod depth;
 mod field;
 mod fluxes;
+pub mod interface;
+#[cfg(test)]
+mod interface_tests;
 #[cfg(test)]
 mod law_tests;
 pub mod layer;
@@ -40,13 +43,14 @@ mod validate;
 pub use field::{FieldFourier, internal_field};
 pub use fluxes::{StreamFluxes, stream_fluxes};
 use orders::*;
-pub use problem::{Base, Layer, Problem, Settings, SolverError, Thickness};
+pub use orders::{discrete_ordinates, quadrature_split};
+pub use problem::{Base, Layer, Problem, Settings, SolverError, Thickness, TopInterface};
 pub use result::{REALIZABILITY_TOL, ReflectionFourier, fourier_sum, make_realizable};
 use validate::validate;
 pub use validate::{UNRESOLVED_TOLERANCE, check_resolved};
 
 use faer::Mat;
-use layer::{add, add_mirror};
+use layer::{TopResponse, add, add_mirror};
 use rayon::prelude::*;
 
 /// The delta-M truncated problem when the settings ask for it.
@@ -73,6 +77,10 @@ pub fn reflection(problem: &Problem, mu_user: &[f64]) -> Result<ReflectionFourie
 /// [`reflection`], reporting progress per batch of Fourier orders to
 /// `on_orders` (the caller decides what to do with it; the solver does no
 /// I/O).
+///
+/// Under a [`Problem::top_interface`] the user cosines are those in air;
+/// [`ReflectionFourier::interface`] then holds the interface's maps and its
+/// delta term.
 pub fn reflection_observed(
     problem: &Problem,
     mu_user: &[f64],
@@ -84,38 +92,55 @@ pub fn reflection_observed(
     let problem = truncated.as_ref().map_or(problem, |t| &t.problem);
     let s = &problem.settings;
     let ns = if s.polarized { 4 } else { 1 };
-    let grid = Grid::new(s, mu_user);
+    // Under a top interface the layers see the user directions refracted
+    // into the binder (`interface`); the response is mapped back to air.
+    let maps = match &problem.top_interface {
+        Some(i) => Some(interface::InterfaceMaps::new(i.index, mu_user)?),
+        None => None,
+    };
+    let grid = Grid::split(
+        s,
+        maps.as_ref().map_or(mu_user, |m| &m.mu_internal),
+        quadrature_split(problem),
+    );
+    let rq = match &problem.top_interface {
+        Some(i) => Some(interface::internal_reflection(i.index, &grid.mu_q, ns)?),
+        None => None,
+    };
     let orders = order_count(problem);
     let (semi_infinite, full) = base_coupling(problem);
     let one_order = |m: usize| -> Mat<f64> {
         let stack = stack_ops(problem, &grid, m, full);
-        if semi_infinite {
-            return stack.ruu;
-        }
-        match &problem.base {
-            Base::Black => stack.ruu,
+        let top = match &problem.base {
+            _ if semi_infinite => TopResponse::of(stack),
+            Base::Black => TopResponse::of(stack),
             Base::Lambertian { albedo } => {
-                add(&stack, &lambertian_ops(&grid, *albedo, m), false).ruu
+                TopResponse::of(add(&stack, &lambertian_ops(&grid, *albedo, m), false))
             }
             Base::Mirror { mueller } => {
                 let mq = mirror_blocks(&grid.mu_q, ns, mueller.as_ref());
                 let mu = mirror_blocks(&grid.mu_u, ns, mueller.as_ref());
-                add_mirror(&stack, &mq, &mu).ruu
+                add_mirror(&stack, &mq, &mu)
             }
+        };
+        match (&maps, &rq) {
+            (Some(maps), Some(rq)) => maps.to_external(&interface::under_interface(&top, rq), ns),
+            _ => top.ruu,
         }
     };
     let mut rho = fourier_orders(
         orders,
         s.fourier_tolerance,
         ns,
-        &grid.mu_u,
+        mu_user,
         one_order,
         on_orders,
     )?;
     let tau_total: f64 = original.layers.iter().map(|l| l.thickness.value()).sum();
     // The secondary-scattering correction of truncated layers is a Fourier
-    // series at the user cosines: added to the solve's coefficients (all
-    // orders of the full series), so that tables carry it too.
+    // series at the user cosines (inside the binder under an interface):
+    // added to the solve's coefficients (all orders of the full series), so
+    // that tables carry it too.
     let correction = truncated.and_then(|t| t.correction);
     if let Some(c) = correction
         .as_ref()
@@ -126,6 +151,10 @@ pub fn reflection_observed(
             .into_iter()
             .enumerate()
         {
+            let x = match &maps {
+                Some(maps) => maps.to_external(&x, ns),
+                None => x,
+            };
             match rho.get_mut(m) {
                 Some(r) => *r += &x,
                 None => rho.push(x),
@@ -134,10 +163,11 @@ pub fn reflection_observed(
     }
     Ok(ReflectionFourier {
         ns,
-        mu: grid.mu_u.clone(),
+        mu: mu_user.to_vec(),
         rho,
         direct: grid.mu_u.iter().map(|m| (-tau_total / m).exp()).collect(),
         correction,
+        interface: maps,
     })
 }
 

@@ -8,7 +8,7 @@ use super::layer::{
 use super::phase::{Gsf, a_matrix};
 use super::*;
 use crate::physics::expansion::GreekCoefficients;
-use crate::physics::quadrature::double_gauss;
+use crate::physics::quadrature::{double_gauss, split_gauss};
 use crate::physics::stokes::Mueller;
 use faer::Mat;
 
@@ -20,10 +20,37 @@ pub(super) struct Grid {
     pub(super) mu_u: Vec<f64>,
 }
 
+/// The discrete ordinates of one hemisphere: [`double_gauss`] of
+/// `streams`, or with a split cosine (under a top interface, its critical
+/// cosine) `streams` Gauss nodes on either side of it
+/// ([`crate::physics::quadrature::split_gauss`]).
+pub fn discrete_ordinates(streams: usize, split: Option<f64>) -> (Vec<f64>, Vec<f64>) {
+    match split {
+        Some(c) => split_gauss(streams, c),
+        None => double_gauss(streams),
+    }
+}
+
+/// Where the discrete ordinates of `problem` are split: the critical cosine
+/// `√(1 − 1/n²)` of a top interface of index `n > 1` (internal directions
+/// below it are totally reflected).
+pub fn quadrature_split(problem: &Problem) -> Option<f64> {
+    problem
+        .top_interface
+        .filter(|i| i.index > 1.0)
+        .map(|i| (1.0 - 1.0 / (i.index * i.index)).sqrt())
+}
+
 impl Grid {
     /// The double-Gauss streams of `settings` and the user cosines `mu_u`.
     pub(super) fn new(settings: &Settings, mu_u: &[f64]) -> Self {
-        let (mu_q, w_q) = double_gauss(settings.streams);
+        Self::split(settings, mu_u, None)
+    }
+
+    /// The discrete ordinates of `settings`, split at `split`
+    /// ([`discrete_ordinates`]), and the user cosines `mu_u`.
+    pub(super) fn split(settings: &Settings, mu_u: &[f64], split: Option<f64>) -> Self {
+        let (mu_q, w_q) = discrete_ordinates(settings.streams, split);
         Self {
             ns: if settings.polarized { 4 } else { 1 },
             mu_q,

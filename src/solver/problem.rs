@@ -110,7 +110,18 @@ impl Default for Settings {
     }
 }
 
-/// A problem: layers top to bottom on a base.
+/// A smooth dielectric interface above the layers: the layers lie in a
+/// binder of real index `index ≥ 1` under air (index 1). Light enters and
+/// leaves the stack through it by Fresnel refraction, and light scattered
+/// up is partly (beyond the critical angle, totally) reflected back down
+/// ([`interface`](super::interface)).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TopInterface {
+    /// Refractive index of the binder (real; air above has index 1).
+    pub index: f64,
+}
+
+/// A problem: layers top to bottom on a base, under an optional interface.
 #[derive(Clone, Debug)]
 pub struct Problem {
     /// Layers, top first.
@@ -119,6 +130,9 @@ pub struct Problem {
     pub base: Base,
     /// Numerical settings.
     pub settings: Settings,
+    /// A smooth binder/air interface on top (`None`: the layers face the
+    /// ambient medium directly, the seed's model).
+    pub top_interface: Option<TopInterface>,
 }
 
 /// Typed solver errors.

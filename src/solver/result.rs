@@ -24,6 +24,11 @@ pub struct ReflectionFourier {
     /// Exact-minus-truncated single scattering when delta-M truncated a
     /// layer; [`ReflectionFourier::brdf`] adds it.
     pub correction: Option<truncation::SingleScatterCorrection>,
+    /// The top interface's maps at the user directions when the problem has
+    /// one ([`interface`]): `mu` are then cosines in air, `rho` the response
+    /// to beams in air, and [`ReflectionFourier::brdf`] evaluates the
+    /// single-scattering correction inside the binder.
+    pub interface: Option<interface::InterfaceMaps>,
 }
 
 impl ReflectionFourier {
@@ -88,7 +93,13 @@ impl ReflectionFourier {
             }
         }
         if let Some(c) = &self.correction {
-            let d = c.brdf(self.mu[iu], mu0, dphi_prop);
+            let d = match &self.interface {
+                None => c.brdf(self.mu[iu], mu0, dphi_prop),
+                Some(i) => {
+                    let inside = c.brdf(i.mu_internal[iu], i.mu_internal[iv], dphi_prop);
+                    i.external_brdf(iu, iv, mu0, &inside)
+                }
+            };
             for p in 0..ns {
                 for q in 0..ns {
                     f[p][q] += d[p][q];
@@ -99,6 +110,16 @@ impl ReflectionFourier {
             make_realizable(&mut f);
         }
         f
+    }
+}
+
+impl ReflectionFourier {
+    /// The delta term of the mirror direction for a beam along `mu[iv]`
+    /// from the top interface's reflection (Mueller matrix of reflected
+    /// over incident flux), if the problem has one. A mirror base's term is
+    /// the caller's (its matrix and `direct`²).
+    pub fn interface_specular(&self, iv: usize) -> Option<Mueller> {
+        self.interface.as_ref().map(|i| i.specular[iv])
     }
 }
 

@@ -104,6 +104,10 @@ pub struct SingleScatterCorrection {
     /// secondary correction subtracts what it integrates). Tables store it;
     /// 0 means unknown, and then there is no secondary term to compute.
     pub streams: usize,
+    /// Where the solve's discrete ordinates are split
+    /// ([`super::discrete_ordinates`]; under a top interface), `None` for
+    /// double-Gauss.
+    pub quadrature_split: Option<f64>,
 }
 
 /// Reflection Mueller matrix of a mirror base as a function of `μ`.
@@ -262,6 +266,7 @@ pub fn delta_m(problem: &Problem) -> Result<Truncated, SolverError> {
                 _ => None,
             },
             streams: n,
+            quadrature_split: super::quadrature_split(problem),
         }),
     })
 }
@@ -397,7 +402,10 @@ impl SingleScatterCorrection {
             &self.scaled_layers(),
             mu,
             self.polarized,
-            Some(self.streams),
+            Some(super::discrete_ordinates(
+                self.streams,
+                self.quadrature_split,
+            )),
             max_order,
         )
     }
@@ -511,6 +519,7 @@ mod tests {
                 delta_m,
                 ..Settings::default()
             },
+            top_interface: None,
         }
     }
 
@@ -541,6 +550,7 @@ mod tests {
                 streams: 16,
                 ..Settings::default()
             },
+            top_interface: None,
         };
         let mu = [0.15, 0.5, 0.9];
         let r = reflection(&p, &mu).unwrap();
@@ -730,6 +740,7 @@ mod tests {
                 start_factor: 1e-3,
                 ..Settings::default()
             },
+            top_interface: None,
         }
     }
 
@@ -754,7 +765,13 @@ mod tests {
         let mu = [0.25, 0.6, 1.0];
         let (w_hat, w_t) = (l.omega, l.omega_t);
         for streams in [None, Some(2)] {
-            let rho = secondary(&layers, &mu, true, streams, None);
+            let rho = secondary(
+                &layers,
+                &mu,
+                true,
+                streams.map(crate::physics::quadrature::double_gauss),
+                None,
+            );
             let mut worst: f64 = 0.0;
             let mut scale: f64 = 0.0;
             for (iu, &m) in mu.iter().enumerate() {
@@ -821,7 +838,16 @@ mod tests {
             omega_trunc: 0.9,
             fx: [0.0; 4],
         };
-        assert!(secondary(&[layer], &[0.3, 1.0], true, Some(8), None).is_empty());
+        assert!(
+            secondary(
+                &[layer],
+                &[0.3, 1.0],
+                true,
+                Some(crate::physics::quadrature::double_gauss(8)),
+                None
+            )
+            .is_empty()
+        );
     }
 
     /// A thin layer reflects by single and double scattering: with delta-M

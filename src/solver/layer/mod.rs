@@ -169,7 +169,7 @@ pub fn identity_minus_product(a: MatRef<'_, f64>, b: MatRef<'_, f64>) -> Mat<f64
 /// `X ← X + G⁻¹(B − G X)`. In thick conservative layers `G = I − R* R` is
 /// nearly singular (its condition grows like τ); refinement keeps the
 /// doubling's flux balance at round-off level.
-fn refined_solve(
+pub fn refined_solve(
     g: &Mat<f64>,
     lu: &faer::linalg::solvers::PartialPivLu<f64>,
     b: &Mat<f64>,
@@ -387,6 +387,18 @@ pub struct TopResponse {
     pub ru: Mat<f64>,
     /// User radiance leaving the top from a beam (the BRDF core).
     pub ruu: Mat<f64>,
+}
+
+impl TopResponse {
+    /// The blocks of a slab's (or a stack's) operators seen from the top.
+    pub fn of(o: Ops) -> Self {
+        Self {
+            r: o.r,
+            rb: o.rb,
+            ru: o.ru,
+            ruu: o.ruu,
+        }
+    }
 }
 
 /// Stack `a` on a specular base that maps downward radiance in direction

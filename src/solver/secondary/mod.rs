@@ -88,7 +88,6 @@ mod geometry;
 use super::layer::mm;
 use super::phase::Gsf;
 use crate::physics::expansion::GreekCoefficients;
-use crate::physics::quadrature::double_gauss;
 use faer::Mat;
 use geometry::Nodes;
 pub(crate) use geometry::{geometry, graded_gauss};
@@ -466,16 +465,17 @@ impl pulp::WithSimd for Contraction<'_> {
 /// layout of [`super::ReflectionFourier::rho`]). Empty when no layer is
 /// truncated.
 ///
-/// With `streams = Some(N)` the truncated double scattering is the one the
-/// discrete-ordinate solve itself contains (its `ν` integral on the `N`-point
-/// double-Gauss quadrature), so that the corrected solution carries the exact
+/// With `discrete = Some(nodes, weights)` (the solve's discrete ordinates
+/// of one hemisphere, [`super::discrete_ordinates`]) the truncated double
+/// scattering is the one the discrete-ordinate solve itself contains (its
+/// `ν` integral on that quadrature), so that the corrected solution carries the exact
 /// double scattering whatever the quadrature; with `None` it is integrated
 /// exactly.
 pub(crate) fn secondary(
     layers: &[ScaledLayer],
     mu: &[f64],
     polarized: bool,
-    streams: Option<usize>,
+    discrete: Option<(Vec<f64>, Vec<f64>)>,
     max_order: Option<usize>,
 ) -> Vec<Mat<f64>> {
     let trimmed: Vec<ScaledLayer> = layers
@@ -525,7 +525,7 @@ pub(crate) fn secondary(
         .map(|l| l.thickness)
         .fold(f64::INFINITY, f64::min);
     let exact = Nodes::new(graded_gauss(terms.max(8), tau_min), mu, &pairs, &bounds);
-    let discrete = streams.map(|n| Nodes::new(double_gauss(n), mu, &pairs, &bounds));
+    let discrete = discrete.map(|q| Nodes::new(q, mu, &pairs, &bounds));
     let trunc_nodes = discrete.as_ref().unwrap_or(&exact);
     // The δ-path geometries G_{jk}(ν = −μ0) and G_{jk}(ν = μ).
     let delta_geometry: Vec<(Vec<f64>, Vec<f64>)> = pairs

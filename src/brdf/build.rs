@@ -86,14 +86,6 @@ pub fn build_wavelength(
     let total = plan.wavelengths.len();
     let lowered = &plan.wavelengths[k];
     let (wl, problem) = (lowered.wavelength_nm, &lowered.problem);
-    if problem.top_interface.is_some() {
-        // The table format has no place yet for the interface's delta term
-        // and maps (the single-scattering correction is stored inside the
-        // binder).
-        return Err(BrdfError::Solver(solver::SolverError::Invalid(
-            "tables under a top interface are not supported yet".into(),
-        )));
-    }
     let t0 = Instant::now();
     let progress = |x: f64| (options.on_progress)(k, total, x);
     // A grid other than the default (`needs.grid.polar_nodes`) is also
@@ -153,6 +145,17 @@ pub fn build_wavelength(
     let orders = refl.rho.len();
     let f = coverage::synthesize(&refl, grid, rows, cols, &incident);
     let specular = match &problem.base {
+        // A smooth top interface reflects the beam before it enters (a
+        // mirror base beneath it is refused by the solver).
+        _ if refl.interface.is_some() => Some(
+            incident
+                .iter()
+                .map(|&i| {
+                    let s = refl.interface_specular(i).expect("an interface");
+                    coverage::keep(&s, rows, cols)
+                })
+                .collect(),
+        ),
         Base::Mirror { mueller } => Some(
             incident
                 .iter()
@@ -171,6 +174,7 @@ pub fn build_wavelength(
                 None => None,
             },
             correction,
+            interface_index: problem.top_interface.map(|i| i.index),
         }),
         None => None,
     };

@@ -1,10 +1,10 @@
-//! The binary table file, version 4 (docs/table-format.md, the normative
+//! The binary table file, version 5 (docs/table-format.md, the normative
 //! description). Little-endian throughout.
 //!
 //! ```text
 //! header (56 bytes)
 //!   0  8  magic  b"PBRDFTAB"
-//!   8  4  u32    format version (4)
+//!   8  4  u32    format version (5; version 4 files are read too)
 //!  12  4  u32    data type of the coefficients: 1 = f32, 2 = f64
 //!  16  8  u64    payload length in bytes (everything after the header)
 //!  24 32  SHA-256 of header bytes 0..24 followed by the payload
@@ -26,6 +26,7 @@
 //!   u32 present (0/1); if 1:
 //!   u32 polarized (0/1), u32 K (layers), u32 streams of the solve,
 //!   f64 mirror depth τ', f64 n1, f64 n2, f64 k2  (all NaN: no mirror)
+//!   f64 binder index of a smooth top interface (NaN: none; not in version 4)
 //!   per layer: f64 ω, τ, τ_top, ω', τ', τ'_top (τ may be +inf), f64[4]
 //!     removed forward fractions (f, f₂₃, f₂₃, f₄), then the
 //!     full and the truncated expansion, each as six series
@@ -49,8 +50,30 @@ use crate::solver::truncation::CorrectionLayer;
 /// The first 8 bytes of every table file.
 pub const MAGIC: [u8; 8] = *b"PBRDFTAB";
 
-/// The format version this build writes and reads.
-pub const VERSION: u32 = 4;
+/// The format version this build writes; it reads it and
+/// [`OLDEST_READ_VERSION`] onwards.
+pub const VERSION: u32 = 5;
+
+/// The version a table is written in: the oldest that holds it, so that
+/// tables without a top interface keep the bytes (and stored rows their
+/// media type) of every version-4 writer: 5 when a correction record
+/// carries an interface index, else 4.
+pub fn version_of(table: &Table) -> u32 {
+    let interface = table.wavelengths.iter().any(|w| {
+        w.correction
+            .as_ref()
+            .is_some_and(|c| c.interface_index.is_some())
+    });
+    if interface {
+        VERSION
+    } else {
+        OLDEST_READ_VERSION
+    }
+}
+
+/// The oldest format version this build reads: version 4 lacks the
+/// interface index of the correction record (no top interface).
+pub const OLDEST_READ_VERSION: u32 = 4;
 
 /// Header size in bytes.
 pub const HEADER_LEN: usize = 56;
@@ -169,12 +192,12 @@ pub fn to_bytes(table: &Table, dtype: DataType) -> Result<Vec<u8>, BrdfError> {
             }
         }
         if has_corr {
-            put_correction(&mut p, w.correction.as_ref());
+            put_correction(&mut p, w.correction.as_ref(), version_of(table));
         }
     }
     let mut out = Vec::with_capacity(HEADER_LEN + p.len());
     out.extend_from_slice(&MAGIC);
-    out.extend_from_slice(&VERSION.to_le_bytes());
+    out.extend_from_slice(&version_of(table).to_le_bytes());
     out.extend_from_slice(&dtype.code().to_le_bytes());
     out.extend_from_slice(&(p.len() as u64).to_le_bytes());
     let sha = checksum(&out[..24], &p);
@@ -184,7 +207,7 @@ pub fn to_bytes(table: &Table, dtype: DataType) -> Result<Vec<u8>, BrdfError> {
 }
 
 /// The correction record of one wavelength (module doc).
-fn put_correction(p: &mut Vec<u8>, c: Option<&StoredCorrection>) {
+fn put_correction(p: &mut Vec<u8>, c: Option<&StoredCorrection>, version: u32) {
     let Some(c) = c else {
         p.extend_from_slice(&0u32.to_le_bytes());
         return;
@@ -205,6 +228,9 @@ fn put_correction(p: &mut Vec<u8>, c: Option<&StoredCorrection>) {
     for x in [depth, n1, n2, k2] {
         p.extend_from_slice(&x.to_le_bytes());
     }
+    if version >= 5 {
+        p.extend_from_slice(&c.interface_index.unwrap_or(f64::NAN).to_le_bytes());
+    }
     for l in &corr.layers {
         for x in [l.omega, l.tau, l.tau_top, l.omega_t, l.tau_t, l.tau_top_t] {
             p.extend_from_slice(&x.to_le_bytes());
@@ -224,7 +250,7 @@ fn put_correction(p: &mut Vec<u8>, c: Option<&StoredCorrection>) {
 }
 
 /// Read a correction record (module doc).
-fn get_correction(c: &mut Cursor) -> Result<Option<StoredCorrection>, BrdfError> {
+fn get_correction(c: &mut Cursor, version: u32) -> Result<Option<StoredCorrection>, BrdfError> {
     match c.u32("correction flag")? {
         0 => return Ok(None),
         1 => {}
@@ -250,6 +276,18 @@ fn get_correction(c: &mut Cursor) -> Result<Option<StoredCorrection>, BrdfError>
         Some((m[0], m[1], RefractiveIndex::new(m[2], m[3])))
     } else {
         return Err(fmt_err(format!("malformed table: correction mirror {m:?}")));
+    };
+    let interface_index = match version {
+        4 => None,
+        _ => match c.f64s(1, "correction interface index")?[0] {
+            x if x.is_nan() => None,
+            x if x.is_finite() && x >= 1.0 => Some(x),
+            x => {
+                return Err(fmt_err(format!(
+                    "malformed table: correction interface index {x}"
+                )));
+            }
+        },
     };
     let mut layers = Vec::with_capacity(k.min(1 << 16));
     for _ in 0..k {
@@ -305,7 +343,11 @@ fn get_correction(c: &mut Cursor) -> Result<Option<StoredCorrection>, BrdfError>
         });
     }
     Ok(Some(StoredCorrection::from_parts(
-        layers, polarized, streams, mirror,
+        layers,
+        polarized,
+        streams,
+        mirror,
+        interface_index,
     )))
 }
 
@@ -371,8 +413,8 @@ impl<'a> Cursor<'a> {
 }
 
 /// Check the header (magic, version, data type, length, SHA-256) and return
-/// the data type and the payload.
-fn check_header(b: &[u8]) -> Result<(DataType, &[u8]), BrdfError> {
+/// the data type, the format version and the payload.
+fn check_header(b: &[u8]) -> Result<(DataType, u32, &[u8]), BrdfError> {
     if b.len() < MAGIC.len() || b[..MAGIC.len()] != MAGIC {
         return Err(fmt_err(format!(
             "not a polbrdf table: bad magic bytes (expected {:?})",
@@ -386,9 +428,9 @@ fn check_header(b: &[u8]) -> Result<(DataType, &[u8]), BrdfError> {
         )));
     }
     let version = u32::from_le_bytes(b[8..12].try_into().unwrap());
-    if version != VERSION {
+    if !(OLDEST_READ_VERSION..=VERSION).contains(&version) {
         return Err(fmt_err(format!(
-            "unsupported table format version {version} (this build reads version {VERSION})"
+            "unsupported table format version {version} (this build reads versions {OLDEST_READ_VERSION} to {VERSION})"
         )));
     }
     let dtype = match u32::from_le_bytes(b[12..16].try_into().unwrap()) {
@@ -418,13 +460,13 @@ fn check_header(b: &[u8]) -> Result<(DataType, &[u8]), BrdfError> {
             hex(&sha)
         )));
     }
-    Ok((dtype, payload))
+    Ok((dtype, version, payload))
 }
 
 /// Parse a table file's bytes (docs/table-format.md), verifying the header
 /// and the SHA-256 first.
 pub fn from_bytes(b: &[u8]) -> Result<Table, BrdfError> {
-    let (dtype, payload) = check_header(b)?;
+    let (dtype, version, payload) = check_header(b)?;
     let mut c = Cursor { b: payload, at: 0 };
     let meta_len = c.u64("metadata length")?;
     let meta_len = usize::try_from(meta_len).map_err(|_| fmt_err("metadata too long"))?;
@@ -521,7 +563,7 @@ pub fn from_bytes(b: &[u8]) -> Result<Table, BrdfError> {
             None
         };
         let correction = if flags & 2 == 2 {
-            get_correction(&mut c)?
+            get_correction(&mut c, version)?
         } else {
             None
         };
@@ -639,12 +681,66 @@ mod tests {
         assert!(fa[0][0] != 0.0);
     }
 
+    /// A truncated solve under a smooth top interface: the record keeps
+    /// the binder index, and the correction read back is evaluated across
+    /// the interface as the one written.
+    #[test]
+    fn interface_correction_records_round_trip() {
+        let text = r#"{"layers": [{"optical_thickness": 0.5, "scatterer": {"mie": {
+             "material": {"n": 2.0, "k": 0.001}, "radius_um": 1.0, "host_index": 1.5}}}],
+             "top_interface": {"smooth": {}},
+             "wavelengths_nm": [550], "solver": {"streams": 4}}"#;
+        let spec = crate::material::parse(text).unwrap();
+        let t = Table::from_spec(&spec, PolarGrid::graded(6).unwrap()).unwrap();
+        let c = t.wavelengths[0].correction.as_ref().expect("truncated");
+        assert_eq!(c.interface_index, Some(1.5));
+        let back = from_bytes(&to_bytes(&t, DataType::F64).unwrap()).unwrap();
+        assert_eq!(back, t);
+        let (a, b) = (&t.wavelengths[0], &back.wavelengths[0]);
+        let (mut fa, mut fb) = ([[0.0; 4]; 4], [[0.0; 4]; 4]);
+        a.complete(&mut fa, 40.0, 35.0, 0.3);
+        b.complete(&mut fb, 40.0, 35.0, 0.3);
+        assert_eq!(fa, fb);
+    }
+
+    /// Tables without a top interface are written in version 4 (the
+    /// correction record without the interface index, every earlier
+    /// writer's bytes); a table whose correction carries an interface
+    /// index is version 5 and is 8 bytes per record longer.
+    #[test]
+    fn the_oldest_version_that_holds_the_table_is_written() {
+        let mie = |host: &str, interface: &str| {
+            let text = format!(
+                r#"{{"layers": [{{"optical_thickness": 0.5, "scatterer": {{"mie": {{
+                 "material": {{"n": 2.0, "k": 0.001}}, "radius_um": 1.0,
+                 "host_index": {host}}}}}}}], {interface}
+                 "wavelengths_nm": [550], "solver": {{"streams": 4}}}}"#
+            );
+            let spec = crate::material::parse(&text).unwrap();
+            Table::from_spec(&spec, PolarGrid::graded(6).unwrap()).unwrap()
+        };
+        let version = |b: &[u8]| u32::from_le_bytes(b[8..12].try_into().unwrap());
+        let plain = to_bytes(&mie("1.5", ""), DataType::F64).unwrap();
+        assert_eq!(version(&plain), 4);
+        let under = mie("1.5", r#""top_interface": {"smooth": {}},"#);
+        let bytes = to_bytes(&under, DataType::F64).unwrap();
+        assert_eq!(version(&bytes), 5);
+        assert_eq!(from_bytes(&bytes).unwrap(), under);
+        // The same record layout but for the index (the metadata differ by
+        // the spec's `top_interface`): a v5 record read as v4 is refused.
+        let mut as_v4 = bytes.clone();
+        as_v4[8..12].copy_from_slice(&4u32.to_le_bytes());
+        let sha = checksum(&as_v4[..24], &as_v4[HEADER_LEN..]);
+        as_v4[24..56].copy_from_slice(&sha);
+        assert!(from_bytes(&as_v4).is_err());
+    }
+
     #[test]
     fn header_layout_is_as_documented() {
         let b = to_bytes(&small_table(false), DataType::F32).unwrap();
         assert_eq!(&b[..8], b"PBRDFTAB");
-        assert_eq!(u32::from_le_bytes(b[8..12].try_into().unwrap()), VERSION);
-        assert_eq!(VERSION, 4);
+        assert_eq!(u32::from_le_bytes(b[8..12].try_into().unwrap()), 4);
+        assert_eq!((OLDEST_READ_VERSION, VERSION), (4, 5));
         assert_eq!(u32::from_le_bytes(b[12..16].try_into().unwrap()), 1);
         let len = u64::from_le_bytes(b[16..24].try_into().unwrap()) as usize;
         assert_eq!(len, b.len() - HEADER_LEN);

@@ -506,7 +506,9 @@ fn metadata(table: &Table, opts: &MitsubaOptions, wvls: &[u16], resampled: bool)
         } else {
             "exact: the table's five wavelengths"
         },
-        "specular_delta": if mirror {
+        "specular_delta": if mirror && has_top_interface(table) {
+            "NOT INCLUDED: the table has a smooth top interface; its specular reflection is a Dirac delta (docs/conventions.md sec. 8) that a measured_polarized grid cannot represent. Only the diffuse part is in M; a renderer must add a delta lobe at the mirror direction with weight S = M(r_1n(mu_i)), the Fresnel Mueller matrix of air over the binder at the light's cosine mu_i (docs/mitsuba.md)."
+        } else if mirror {
             "NOT INCLUDED: the table's base is a mirror; its specular reflection is a Dirac delta (docs/conventions.md sec. 6) that a measured_polarized grid cannot represent. Only the diffuse part is in M; a renderer must add a delta lobe at the mirror direction with weight S = exp(-2 tau/mu_i) M_F(mu_i): tau the stack's optical thickness, M_F the base's Fresnel Mueller matrix at the light's cosine mu_i (docs/mitsuba.md)."
         } else {
             "none: the table has no mirror base"
@@ -816,11 +818,19 @@ pub fn export_warnings(table: &Table, check: &ResamplingError, finer_grid: &str)
         ));
     }
     if table.wavelengths.iter().any(|w| w.specular.is_some()) {
-        out.push(
-            "the table's base is a mirror; its specular delta cannot be represented in a measured_polarized table and is left out: only the diffuse BRDF is in the file. A renderer must add a delta lobe at the mirror direction with weight S = exp(-2 tau/mu_i) M_F(mu_i) (docs/conventions.md sec. 6; polbrdf eval's specular; docs/mitsuba.md)".into(),
-        );
+        out.push(if has_top_interface(table) {
+            "the table has a smooth top interface; its specular reflection is a delta that cannot be represented in a measured_polarized table and is left out: only the diffuse BRDF is in the file. A renderer must add a delta lobe at the mirror direction with weight S = M(r_1n(mu_i)), the Fresnel Mueller matrix of air over the binder (docs/conventions.md sec. 8; polbrdf eval's specular; docs/mitsuba.md)".into()
+        } else {
+            "the table's base is a mirror; its specular delta cannot be represented in a measured_polarized table and is left out: only the diffuse BRDF is in the file. A renderer must add a delta lobe at the mirror direction with weight S = exp(-2 tau/mu_i) M_F(mu_i) (docs/conventions.md sec. 6; polbrdf eval's specular; docs/mitsuba.md)".into()
+        });
     }
     out
+}
+
+/// Whether the table's spec has a top interface (whose reflection is then
+/// its delta term, conventions §8).
+fn has_top_interface(table: &Table) -> bool {
+    table.metadata.spec.get("top_interface").is_some()
 }
 
 /// A small deterministic generator (SplitMix64) for sampling directions.

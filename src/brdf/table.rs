@@ -77,7 +77,9 @@ pub struct WavelengthTable {
     /// `(((m·N + o)·K + k)·ns + p)·cols + q` with `k` the position of the
     /// incident node in [`WavelengthTable::incident`] (`K` of them).
     pub f: Vec<f64>,
-    /// `e^{−2τ/μ_i} M_F(μ_i)` per held incident node (mirror bases), else
+    /// The delta term (conventions §6) per held incident node:
+    /// `e^{−2τ/μ_i} M_F(μ_i)` of a mirror base, or the Fresnel reflection
+    /// `M(r_{1→n}(μ_i))` of a smooth top interface (conventions §8), else
     /// `None`; elements outside `ns × cols` are zero unless `cols = ns`.
     pub specular: Option<Vec<Mueller>>,
     /// Solver wall time for this wavelength (ms).
@@ -98,6 +100,10 @@ pub struct StoredCorrection {
     pub correction: SingleScatterCorrection,
     /// Ambient and base indices of a Fresnel base under a finite stack.
     pub mirror_indices: Option<(f64, RefractiveIndex)>,
+    /// The binder index of a smooth top interface: the correction is
+    /// then evaluated inside the binder and carried across it
+    /// (`solver::interface`).
+    pub interface_index: Option<f64>,
 }
 
 impl PartialEq for StoredCorrection {
@@ -108,27 +114,48 @@ impl PartialEq for StoredCorrection {
             && a.mirror.as_ref().map(|m| m.1) == b.mirror.as_ref().map(|m| m.1)
             && a.streams == b.streams
             && self.mirror_indices == other.mirror_indices
+            && self.interface_index == other.interface_index
     }
 }
 
 impl StoredCorrection {
     /// Rebuild from stored parts (`mirror` = scaled stack thickness and the
-    /// Fresnel indices).
+    /// Fresnel indices; `interface_index` that of a smooth top interface).
     pub fn from_parts(
         layers: Vec<CorrectionLayer>,
         polarized: bool,
         streams: usize,
         mirror: Option<(f64, f64, RefractiveIndex)>,
+        interface_index: Option<f64>,
     ) -> Self {
+        let top_interface = interface_index.map(|index| solver::TopInterface { index });
         Self {
             correction: SingleScatterCorrection {
                 layers,
                 polarized,
                 mirror: mirror.map(|(depth, n1, n2)| (plan::fresnel_mirror(n1, n2), depth)),
                 streams,
-                quadrature_split: None,
+                quadrature_split: solver::interface_split(top_interface.as_ref()),
             },
             mirror_indices: mirror.map(|(_, n1, n2)| (n1, n2)),
+            interface_index,
+        }
+    }
+
+    /// The correction's BRDF at external cosines `mu_o`, `mu_i` (in air
+    /// under a top interface, [`solver::interface::InterfaceMaps`]).
+    pub fn brdf(&self, mu_o: f64, mu_i: f64, dphi_prop: f64) -> Mueller {
+        let c = &self.correction;
+        match self.interface_index {
+            None => c.brdf(mu_o, mu_i, dphi_prop),
+            Some(index) => match solver::interface::InterfaceMaps::new(index, &[mu_o, mu_i]) {
+                Ok(maps) => {
+                    let inside = c.brdf(maps.mu_internal[0], maps.mu_internal[1], dphi_prop);
+                    maps.external_brdf(0, 1, mu_i, &inside)
+                }
+                // Validated indices and cosines in [0, 1]: cannot fail.
+                Err(_) => [[0.0; 4]; 4],
+            },
         }
     }
 }
@@ -330,7 +357,7 @@ impl WavelengthTable {
     /// coarse solve, need not be).
     pub fn complete(&self, f: &mut Mueller, theta_i_deg: f64, theta_o_deg: f64, dphi_prop: f64) {
         if let Some(c) = &self.correction {
-            let d = c.correction.brdf(
+            let d = c.brdf(
                 mu_of_theta_deg(theta_o_deg),
                 mu_of_theta_deg(theta_i_deg),
                 dphi_prop,

@@ -58,7 +58,7 @@ pub fn run(a: &EvalArgs) -> Result<Value, String> {
         "frames": FRAMES,
         "specular": s.map(|s| mueller_json(&table, &s)),
         "specular_note": format!(
-            "mirror base only, and only when w_o is within {MIRROR_TOLERANCE_RAD:e} rad of the mirror direction (theta_i, phi_i + 180): S with integral of L_out over the delta = S F_beam (docs/conventions.md §6)"
+            "a mirror base or a smooth top_interface only, and only when w_o is within {MIRROR_TOLERANCE_RAD:e} rad of the mirror direction (theta_i, phi_i + 180): S with integral of L_out over the delta = S F_beam (docs/conventions.md §6, §8)"
         ),
     }))
 }

@@ -22,8 +22,8 @@
 //! streams); `error_estimate` (the solver's a-posteriori estimate,
 //! `solver::accuracy`) is present only when the direction pairs were solved,
 //! as the field solve makes none. `specular` (with `--points`) lists the
-//! specular term of a mirror base per incident angle (conventions §6) and is
-//! empty for other bases. The per-result `table` object describes the table
+//! specular term of a mirror base (conventions §6) or of a smooth top
+//! interface (§8) per incident angle and is empty for other stacks. The per-result `table` object describes the table
 //! build at that wavelength (its own solve on the table's polar grid, from
 //! the table's metadata, docs/table-format.md); the top-level `table`
 //! describes the file. Without `--points`, `--field` or `--table` the spec
@@ -32,6 +32,7 @@
 use super::progress::Progress;
 use crate::brdf::angles::{MU_FLOOR, dphi_prop_rad, mu_of_theta_deg};
 use crate::material::{self, Spec, SpecError};
+use crate::physics::stokes::Mueller;
 use crate::plan;
 use crate::solver::{self, Base, fourier_sum};
 use clap::Args;
@@ -353,21 +354,32 @@ fn solve_direct(
                     "mueller": m,
                 }));
             }
-            if let Base::Mirror { mueller } = &problem.base {
-                let mut seen: Vec<f64> = Vec::new();
-                for p in points {
-                    if seen.contains(&p.theta_i_deg) {
-                        continue;
+            // The delta term: a smooth top interface's reflection, or a
+            // mirror base's through the stack (never both: refused).
+            let delta = |mu: f64| -> Option<Mueller> {
+                let iv = set.index(mu);
+                if let Some(s) = refl.interface_specular(iv) {
+                    return Some(s);
+                }
+                let Base::Mirror { mueller } = &problem.base else {
+                    return None;
+                };
+                let e = refl.direct[iv];
+                let mut s = mueller(mu);
+                for row in &mut s {
+                    for x in row.iter_mut() {
+                        *x *= e * e;
                     }
-                    seen.push(p.theta_i_deg);
-                    let mu = mu_of_theta_deg(p.theta_i_deg);
-                    let e = refl.direct[set.index(mu)];
-                    let mut s = mueller(mu);
-                    for row in &mut s {
-                        for x in row.iter_mut() {
-                            *x *= e * e;
-                        }
-                    }
+                }
+                Some(s)
+            };
+            let mut seen: Vec<f64> = Vec::new();
+            for p in points {
+                if seen.contains(&p.theta_i_deg) {
+                    continue;
+                }
+                seen.push(p.theta_i_deg);
+                if let Some(s) = delta(mu_of_theta_deg(p.theta_i_deg)) {
                     spec_terms.push(json!({"theta_i_deg": p.theta_i_deg, "mueller": s}));
                 }
             }

@@ -847,7 +847,7 @@ fn dense_bytes(
                     "phi_deg": grid.phi_deg,
                     "phi_note": "phi = phi_o - phi_i (graphics convention, phi_i = 0; 180 = mirror side)",
                 },
-                "specular_note": "the specular delta of a mirror base is not part of dense values; see the binary table or eval",
+                "specular_note": "the specular delta of a mirror base or a smooth top_interface is not part of dense values; see the binary table or eval",
                 "data": d.data,
             });
             Ok((
@@ -878,7 +878,7 @@ fn dense_bytes(
         TableQuery,
     ),
     responses(
-        (status = 200, description = "The BRDF table (docs/table-format.md), Content-Type application/vnd.polbrdf.table; version=4; or with format=npy (application/x-npy) or format=json (application/json) a dense export; or with format=mitsuba a Mitsuba 3 measured_polarized tensor file (docs/mitsuba.md), application/octet-stream",
+        (status = 200, description = "The BRDF table (docs/table-format.md), Content-Type application/vnd.polbrdf.table; version=4 (version=5 for a table under a top_interface); or with format=npy (application/x-npy) or format=json (application/json) a dense export; or with format=mitsuba a Mitsuba 3 measured_polarized tensor file (docs/mitsuba.md), application/octet-stream",
          content(
              (TableBytes = "application/vnd.polbrdf.table; version=4"),
              (TableBytes = "application/x-npy"),

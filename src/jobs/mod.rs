@@ -333,7 +333,7 @@ impl Jobs {
                 Status::Done => {
                     let present = match (&row.digest, row.size) {
                         // A result in an older format is stale: solve again.
-                        _ if row.media_type.as_deref() != Some(result::MEDIA_TYPE) => false,
+                        _ if !result::is_current_media_type(row.media_type.as_deref()) => false,
                         (Some(d), Some(size)) => {
                             let (blobs, d) = (self.blobs.clone(), d.clone());
                             // The store not answering is an error (503/500),
@@ -438,11 +438,11 @@ impl Jobs {
 
     /// The verified bytes of a done row's result. `None` when the blob is
     /// missing or corrupt, or the result is in an older format than
-    /// [`result::MEDIA_TYPE`]: the job is then queued again (and the bytes
+    /// [`result::is_current_media_type`]: the job is then queued again (and the bytes
     /// are never served).
     pub async fn result_bytes(self: &Arc<Self>, row: &JobRow) -> Result<Option<Vec<u8>>, JobError> {
         let bytes = match row.digest.clone() {
-            Some(digest) if row.media_type.as_deref() == Some(result::MEDIA_TYPE) => {
+            Some(digest) if result::is_current_media_type(row.media_type.as_deref()) => {
                 let blobs = self.blobs.clone();
                 tokio::task::spawn_blocking(move || blobs.get(&digest))
                     .await

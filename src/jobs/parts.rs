@@ -28,6 +28,7 @@ pub(super) struct StoredPart {
     pub(super) canonical_json: String,
     pub(super) digest: String,
     pub(super) size: i64,
+    pub(super) media_type: &'static str,
     pub(super) wall_time_ms: Vec<f64>,
     pub(super) error_estimate: Option<f64>,
 }
@@ -63,14 +64,14 @@ impl Jobs {
     }
 
     /// The verified bytes of the cached per-wavelength result `id`, if it
-    /// is done, current and in [`result::MEDIA_TYPE`] (else it is solved).
+    /// is done, current and in a current media type ([`result::is_current_media_type`]) (else it is solved).
     async fn cached_part(&self, id: &str) -> Result<Option<CachedPart>, JobError> {
         let Some(row) = self.index.get(id).await? else {
             return Ok(None);
         };
         let usable = row.status == Status::Done
             && row.is_current()
-            && row.media_type.as_deref() == Some(result::MEDIA_TYPE);
+            && result::is_current_media_type(row.media_type.as_deref());
         let Some(digest) = row.digest.clone().filter(|_| usable) else {
             return Ok(None);
         };
@@ -104,7 +105,7 @@ impl Jobs {
             .await?;
         let mut candidates: Vec<(bool, usize, String)> = rows
             .into_iter()
-            .filter(|r| r.media_type.as_deref() == Some(result::MEDIA_TYPE))
+            .filter(|r| result::is_current_media_type(r.media_type.as_deref()))
             .filter_map(|r| {
                 let c = crate::material::parse(&r.spec).ok()?;
                 let check = plan::spec_may_cover(&c, spec).ok()?;
@@ -153,19 +154,20 @@ impl Jobs {
                 .map_err(|e| e.to_string())?;
             let (bytes, estimate) = result::assemble(&c, &i, tables).map_err(|f| f.message)?;
             let digest = blobs.put(&bytes).map_err(|e| e.to_string())?;
-            Ok::<_, String>((digest, bytes.len() as i64, estimate))
+            let media_type = result::media_type_of(&bytes);
+            Ok::<_, String>((digest, bytes.len() as i64, estimate, media_type))
         })
         .await
         .map_err(|e| JobError::Storage(e.to_string()))?
         .map_err(JobError::Storage)?;
-        let (digest, size, estimate) = stored;
+        let (digest, size, estimate, media_type) = stored;
         self.index
             .record_done(
                 id,
                 canonical,
                 &digest,
                 size,
-                result::MEDIA_TYPE,
+                media_type,
                 walls,
                 estimate,
                 now_ms(),
@@ -186,6 +188,7 @@ pub(super) fn store_part(blobs: &BlobStore, p: SolvedPart) -> Result<StoredPart,
         canonical_json: p.part.canonical_json,
         digest,
         size: p.solved.bytes.len() as i64,
+        media_type: p.solved.media_type,
         wall_time_ms: p.solved.wall_time_ms,
         error_estimate: p.solved.error_estimate,
     })

@@ -19,15 +19,45 @@ use crate::plan::{Plan, WavelengthPart};
 use crate::solver;
 use std::time::Instant;
 
-/// Media type of the stored bytes, with the table format version
-/// (`brdf::format::VERSION`): a row stored in another version is stale and
-/// is solved again on its next request (`Jobs::result_bytes`).
+/// Media type of stored bytes in table format version 4, which every table
+/// without a top interface is written in (`brdf::format::version_of`).
 pub const MEDIA_TYPE: &str = "application/vnd.polbrdf.table; version=4";
+
+/// Media type of stored bytes in table format version 5 (a table under a
+/// top interface whose correction records carry its index).
+pub const MEDIA_TYPE_V5: &str = "application/vnd.polbrdf.table; version=5";
+
+/// The media type of table bytes, by the format version in their header.
+pub fn media_type_of(bytes: &[u8]) -> &'static str {
+    match bytes
+        .get(8..12)
+        .map(|b| u32::from_le_bytes(b.try_into().unwrap()))
+    {
+        Some(5) => MEDIA_TYPE_V5,
+        _ => MEDIA_TYPE,
+    }
+}
+
+/// Whether a row's media type is one this build reads and writes
+/// (versions 4 and 5): a row stored in another version is stale and is
+/// solved again on its next request (`Jobs::result_bytes`).
+pub fn is_current_media_type(media_type: Option<&str>) -> bool {
+    matches!(media_type, Some(MEDIA_TYPE | MEDIA_TYPE_V5))
+}
 
 #[cfg(test)]
 #[test]
-fn media_type_names_the_format_version() {
-    assert!(MEDIA_TYPE.ends_with(&format!("; version={}", crate::brdf::format::VERSION)));
+fn media_types_name_the_format_versions() {
+    use crate::brdf::format::{OLDEST_READ_VERSION, VERSION};
+    assert!(MEDIA_TYPE.ends_with(&format!("; version={OLDEST_READ_VERSION}")));
+    assert!(MEDIA_TYPE_V5.ends_with(&format!("; version={VERSION}")));
+    let mut header = b"PBRDFTAB".to_vec();
+    header.extend_from_slice(&5u32.to_le_bytes());
+    assert_eq!(media_type_of(&header), MEDIA_TYPE_V5);
+    assert!(is_current_media_type(Some(media_type_of(&header))));
+    assert!(!is_current_media_type(Some(
+        "application/vnd.polbrdf.table; version=3"
+    )));
 }
 
 /// Precision of the stored coefficients (lossless).
@@ -112,8 +142,8 @@ pub fn solve(
     let table = Table::from_plan(&plan, grid, built).map_err(|e| failure(e, None))?;
     let bytes = format::to_bytes(&table, DATA_TYPE).map_err(|e| failure(e, None))?;
     Ok(Solved {
+        media_type: media_type_of(&bytes),
         bytes,
-        media_type: MEDIA_TYPE,
         wall_time_ms: wall,
         error_estimate,
     })
@@ -198,8 +228,8 @@ pub fn solve_parts(
     }
     let (bytes, error_estimate) = assemble(spec_canonical_json, spec_id, tables)?;
     Ok(Solved {
+        media_type: media_type_of(&bytes),
         bytes,
-        media_type: MEDIA_TYPE,
         wall_time_ms: wall,
         error_estimate,
     })

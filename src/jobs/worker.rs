@@ -419,7 +419,7 @@ impl Jobs {
                         &p.canonical_json,
                         &p.digest,
                         p.size,
-                        result::MEDIA_TYPE,
+                        p.media_type,
                         &p.wall_time_ms,
                         p.error_estimate,
                         now,

@@ -19,6 +19,7 @@
 
 use super::{
     BaseSpec, DEFAULT_STREAMS, ExpansionSpec, HostSpec, MaterialSpec, ScattererSpec, Spec,
+    TopInterfaceSpec,
 };
 use crate::physics::materials;
 use serde_json::Value;
@@ -66,6 +67,15 @@ pub fn normalized(spec: &Spec) -> Spec {
             ambient_index.get_or_insert(n);
         }
     }
+    // A smooth interface's index is written, from the layers' one host
+    // when it defaults to it (`interface_index`), so that both spellings
+    // share an id.
+    if let TopInterfaceSpec::Smooth { index } | TopInterfaceSpec::Rough { index, .. } =
+        &mut s.top_interface
+        && let Ok(Some(host)) = super::interface_index(spec)
+    {
+        *index = Some(host);
+    }
     s.needs = s.needs.normalized();
     s
 }
@@ -99,7 +109,7 @@ fn canonical_material(m: &mut MaterialSpec) {
 /// A host given as a material is canonical as that material; a real index
 /// stays a number (`{"n": 1.5, "k": 0}` and `1.5` are different bytes but
 /// the same computation, so the `{n, k = 0}` form is written as the number).
-fn canonical_host(h: &mut HostSpec) {
+pub(super) fn canonical_host(h: &mut HostSpec) {
     match h {
         HostSpec::Index(_) => {}
         HostSpec::Material(MaterialSpec::Index { n, k }) if *k == 0.0 => *h = HostSpec::Index(*n),
@@ -293,5 +303,29 @@ mod tests {
         assert_eq!(canonical_json(&absent), canonical_json(&on));
         assert!(!canonical_json(&absent).contains("secondary_scattering"));
         assert!(canonical_json(&off).contains(r#""secondary_scattering":false"#));
+    }
+
+    /// `top_interface`: `"none"` is the absent field (ids of earlier specs
+    /// are unchanged); a smooth interface writes its index, taken from the
+    /// layers' host when left out, so the spellings of one binder share
+    /// an id.
+    #[test]
+    fn top_interface_default_is_implicit_and_its_index_explicit() {
+        let layers = r#""wavelengths_nm":[550],"layers":[{"optical_thickness":1,"scatterer":{"mie":{"material":{"n":2.6,"k":0.001},"radius_um":0.15,"host_index":1.5}}}]"#;
+        let with = |t: &str| canonical_json(&parse(&format!("{{{layers}{t}}}")).unwrap());
+        let absent = with("");
+        assert_eq!(with(r#","top_interface":"none""#), absent);
+        assert!(!absent.contains("top_interface"));
+        let smooth = with(r#","top_interface":{"smooth":{}}"#);
+        assert_ne!(smooth, absent);
+        assert!(
+            smooth.contains(r#""top_interface":{"smooth":{"index":1.5}}"#),
+            "{smooth}"
+        );
+        assert_eq!(with(r#","top_interface":{"smooth":{"index":1.5}}"#), smooth);
+        assert_eq!(
+            with(r#","top_interface":{"smooth":{"index":{"n":1.5,"k":0}}}"#),
+            smooth
+        );
     }
 }

@@ -24,6 +24,9 @@ pub use parse::{from_json_slice, from_json_str, parse};
 pub use schema::{
     BaseSpec, DEFAULT_BINDER, DEFAULT_STREAMS, ExpansionSpec, FILM_KEYS, HostSpec, LayerForm,
     LayerSpec, MaterialSpec, MieSpec, OPTICAL_KEYS, PigmentSpec, SCATTERERS, ScattererSpec,
-    SizeDistributionSpec, SolverSpec, Spec, SpecError, ThicknessSpec,
+    SizeDistributionSpec, SolverSpec, Spec, SpecError, TOP_INTERFACES, ThicknessSpec,
+    TopInterfaceSpec,
 };
-pub use validate::{MAX_STREAMS, MAX_TABLE_ROWS, validate, validate_material_table};
+pub use validate::{
+    MAX_STREAMS, MAX_TABLE_ROWS, interface_index, validate, validate_material_table,
+};

@@ -6,7 +6,10 @@
 //! struct written as an array, then [`super::validate`].
 
 use super::validate::{with_allowed_range, without_indices};
-use super::{BaseSpec, SCATTERERS, ScattererSpec, SizeDistributionSpec, Spec, SpecError, validate};
+use super::{
+    BaseSpec, SCATTERERS, ScattererSpec, SizeDistributionSpec, Spec, SpecError, TOP_INTERFACES,
+    TopInterfaceSpec, validate,
+};
 use serde::Deserialize;
 use serde::de::DeserializeOwned;
 
@@ -30,7 +33,7 @@ pub fn parse(text: &str) -> Result<Spec, SpecError> {
 /// a list of incident angles (`needs.theta_i_deg`), a film's `pigments`
 /// and a material table (of a particle, a host, a binder or the base) with
 /// its `[wavelength_nm, n, k]` rows.
-const ARRAYS: [&str; 20] = [
+const ARRAYS: [&str; 24] = [
     "layers",
     "wavelengths_nm",
     "needs.theta_i_deg",
@@ -51,6 +54,10 @@ const ARRAYS: [&str; 20] = [
     "layers[].pigments[].material.table[]",
     "layers[].binder.table",
     "layers[].binder.table[]",
+    "top_interface.smooth.index.table",
+    "top_interface.smooth.index.table[]",
+    "top_interface.rough.index.table",
+    "top_interface.rough.index.table[]",
 ];
 
 /// serde reads a struct written as an array of its fields in order
@@ -254,6 +261,17 @@ impl OneOf for BaseSpec {
             Self::Black => "black",
             Self::Lambertian { .. } => "lambertian",
             Self::Fresnel { .. } => "fresnel",
+        }
+    }
+}
+
+impl OneOf for TopInterfaceSpec {
+    const KEYS: &'static [&'static str] = &TOP_INTERFACES;
+    fn key_of(&self) -> &'static str {
+        match self {
+            Self::None => "none",
+            Self::Smooth { .. } => "smooth",
+            Self::Rough { .. } => "rough",
         }
     }
 }

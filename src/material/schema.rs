@@ -42,6 +42,15 @@ pub struct Spec {
     /// Numerical settings.
     #[serde(default)]
     pub solver: SolverSpec,
+    /// A binder/air interface above the layers ([`TopInterfaceSpec`]);
+    /// absent or `"none"`: the seed's model, and then out of the canonical
+    /// form.
+    #[serde(
+        default,
+        skip_serializing_if = "TopInterfaceSpec::is_none",
+        deserialize_with = "crate::material::parse::one_key::<_, TopInterfaceSpec>"
+    )]
+    pub top_interface: TopInterfaceSpec,
     /// What the request needs of its result ([`super::needs`]); absent:
     /// the full product, and then out of the canonical form.
     #[serde(default, skip_serializing_if = "super::needs::Needs::is_full")]
@@ -504,6 +513,55 @@ pub enum BaseSpec {
         #[serde(default, skip_serializing_if = "Option::is_none")]
         ambient_index: Option<f64>,
     },
+}
+
+/// The surface above the layers (docs/spec.md, Top interface): `"none"`
+/// (the layers face air directly) or an object with exactly one of
+/// [`TOP_INTERFACES`] besides `none`.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
+pub enum TopInterfaceSpec {
+    /// No interface.
+    #[default]
+    None,
+    /// A smooth (flat) binder/air interface.
+    Smooth {
+        /// The binder's index, in any [`HostSpec`] form; default: the
+        /// layers' `host_index` (or a film's `binder`) when that is one
+        /// value for the whole stack. The interface sees its real part.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        index: Option<HostSpec>,
+    },
+    /// A rough (GGX, isotropic) interface: read so that it is refused
+    /// with its own message; not solved yet.
+    Rough {
+        /// As for `smooth`.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        index: Option<HostSpec>,
+        /// GGX roughness.
+        alpha: f64,
+    },
+}
+
+/// The keys of a `top_interface` object (or its one word, `"none"`).
+pub const TOP_INTERFACES: [&str; 3] = ["none", "smooth", "rough"];
+
+impl TopInterfaceSpec {
+    /// Whether there is no interface (the default, left out of the
+    /// canonical form).
+    pub fn is_none(&self) -> bool {
+        matches!(self, TopInterfaceSpec::None)
+    }
+
+    /// The index as written (`None`: absent, or no interface).
+    pub fn index(&self) -> Option<&HostSpec> {
+        match self {
+            TopInterfaceSpec::None => None,
+            TopInterfaceSpec::Smooth { index } | TopInterfaceSpec::Rough { index, .. } => {
+                index.as_ref()
+            }
+        }
+    }
 }
 
 /// Numerical settings.

@@ -4,8 +4,8 @@
 //! parse at a numeric field.
 
 use super::{
-    BaseSpec, HostSpec, LayerForm, MaterialSpec, PigmentSpec, ScattererSpec, SizeDistributionSpec,
-    Spec, SpecError, ThicknessSpec,
+    BaseSpec, HostSpec, LayerForm, LayerSpec, MaterialSpec, PigmentSpec, ScattererSpec,
+    SizeDistributionSpec, Spec, SpecError, ThicknessSpec, TopInterfaceSpec,
 };
 use crate::physics::materials;
 
@@ -122,6 +122,7 @@ fn needs_wavelength(spec: &Spec) -> bool {
     spec.layers.iter().any(|l| {
         matches!(l.optical_scatterer(), Some(ScattererSpec::Mie(_))) || l.pigments.is_some()
     }) || matches!(&spec.base, BaseSpec::Fresnel { material, .. } if named(material))
+        || spec.top_interface.index().is_some_and(|h| !h.is_constant())
 }
 
 /// Check every range; the error names the JSON path.
@@ -170,6 +171,7 @@ pub fn validate(spec: &Spec) -> Result<(), SpecError> {
             }
         }
     }
+    validate_top_interface(spec)?;
     match &spec.wavelengths_nm {
         Some(w) => {
             if w.is_empty() || w.len() > 1000 {
@@ -214,6 +216,102 @@ pub fn validate(spec: &Spec) -> Result<(), SpecError> {
         .tolerance
         .filter(|_| spec.solver.streams.is_none());
     spec.needs.validate(tolerance, spec.solver.polarized)
+}
+
+/// The JSON path of a layer's host medium (`None`: the layer has none).
+fn host_path(i: usize, layer: &LayerSpec) -> Option<String> {
+    match layer.form() {
+        Ok(LayerForm::Optical {
+            scatterer: ScattererSpec::Mie(_),
+            ..
+        }) => Some(format!("layers[{i}].scatterer.mie.host_index")),
+        Ok(LayerForm::Film { .. }) => Some(format!("layers[{i}].binder")),
+        _ => None,
+    }
+}
+
+/// The binder index of a spec's `top_interface` (canonical host form),
+/// `None` without an interface: the one given, or the layers' host medium
+/// (`host_index` of Mie layers, `binder` of films, defaults included) when
+/// the stack has one. Every layer with a host must sit in that binder.
+///
+/// # Errors
+/// A host that differs from the interface's index or from another layer's
+/// (naming both paths), or no index to default to.
+pub fn interface_index(spec: &Spec) -> Result<Option<HostSpec>, SpecError> {
+    let key = match &spec.top_interface {
+        TopInterfaceSpec::None => return Ok(None),
+        TopInterfaceSpec::Smooth { .. } => "smooth",
+        TopInterfaceSpec::Rough { .. } => "rough",
+    };
+    let canonical = |h: &HostSpec| {
+        let mut h = h.clone();
+        super::canonical::canonical_host(&mut h);
+        h
+    };
+    let index_path = format!("top_interface.{key}.index");
+    let mut chosen: Option<(String, HostSpec)> = spec
+        .top_interface
+        .index()
+        .map(|h| (index_path.clone(), canonical(h)));
+    for (i, layer) in spec.layers.iter().enumerate() {
+        let (Some(path), Some(host)) = (host_path(i, layer), layer.host()) else {
+            continue;
+        };
+        let host = canonical(host);
+        match &chosen {
+            None => chosen = Some((path, host)),
+            Some((p, h)) if *h != host => {
+                return Err(SpecError::new(
+                    path,
+                    format!(
+                        "{} differs from {p} = {}: the layers under a top_interface sit in its \
+                         binder (give them the same medium, or leave top_interface.{key}.index \
+                         out to take the layers')",
+                        host.label(),
+                        h.label()
+                    ),
+                ));
+            }
+            Some(_) => {}
+        }
+    }
+    match chosen {
+        Some((_, h)) => Ok(Some(h)),
+        None => Err(SpecError::new(
+            index_path,
+            "missing field: no layer has a host_index or binder to take it from",
+        )),
+    }
+}
+
+/// `top_interface`: its index (a host medium, [`interface_index`]); the
+/// parts not solved yet (a rough interface, a Fresnel base beneath) are
+/// refused by name.
+fn validate_top_interface(spec: &Spec) -> Result<(), SpecError> {
+    if let TopInterfaceSpec::Rough { alpha, .. } = &spec.top_interface {
+        return Err(SpecError::new(
+            "top_interface.rough",
+            format!(
+                "a rough top interface (alpha = {alpha}) is not supported yet; \
+                 \"none\" and {{\"smooth\": {{\"index\": …}}}} are"
+            ),
+        ));
+    }
+    if let Some(h) = spec.top_interface.index() {
+        validate_host("top_interface.smooth.index", h)?;
+    }
+    if spec.top_interface.is_none() {
+        return Ok(());
+    }
+    if matches!(spec.base, BaseSpec::Fresnel { .. }) {
+        return Err(SpecError::new(
+            "base.fresnel",
+            "a Fresnel base under a top_interface is not supported yet \
+             (black and lambertian bases are)",
+        ));
+    }
+    interface_index(spec).map(|_| ())
 }
 
 /// Most rows a material table may have.

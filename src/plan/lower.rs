@@ -183,8 +183,29 @@ pub fn problem(spec: &Spec, wavelength_nm: Option<f64>) -> Result<Problem, SpecE
         layers,
         base,
         settings: settings(spec),
-        top_interface: None,
+        top_interface: top_interface(spec, wavelength_nm)?,
     })
+}
+
+/// A smooth `top_interface` at one wavelength: the real part of its binder
+/// index ([`crate::material::interface_index`]), which must be ≥ 1.
+fn top_interface(
+    spec: &Spec,
+    wavelength_nm: Option<f64>,
+) -> Result<Option<solver::TopInterface>, SpecError> {
+    let Some(host) = crate::material::interface_index(spec)? else {
+        return Ok(None);
+    };
+    let path = "top_interface.smooth.index";
+    let index = super::mie::host_real_index(path, &host, wavelength_nm.unwrap_or(f64::NAN))?;
+    if !(index.is_finite() && index >= 1.0) {
+        let at = wavelength_nm.map_or(String::new(), |w| format!(" at {w} nm"));
+        return Err(SpecError::new(
+            path,
+            format!("the real part {index}{at} is below 1 (a binder under air has n ≥ 1)"),
+        ));
+    }
+    Ok(Some(solver::TopInterface { index }))
 }
 
 /// The share of a `solver.tolerance` the Fourier azimuth series may leave

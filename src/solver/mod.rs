@@ -43,7 +43,7 @@ mod validate;
 pub use field::{FieldFourier, internal_field};
 pub use fluxes::{StreamFluxes, stream_fluxes};
 use orders::*;
-pub use orders::{discrete_ordinates, quadrature_split};
+pub use orders::{discrete_ordinates, interface_split, quadrature_split};
 pub use problem::{Base, Layer, Problem, Settings, SolverError, Thickness, TopInterface};
 pub use result::{REALIZABILITY_TOL, ReflectionFourier, fourier_sum, make_realizable};
 use validate::validate;

@@ -35,8 +35,12 @@ pub fn discrete_ordinates(streams: usize, split: Option<f64>) -> (Vec<f64>, Vec<
 /// `√(1 − 1/n²)` of a top interface of index `n > 1` (internal directions
 /// below it are totally reflected).
 pub fn quadrature_split(problem: &Problem) -> Option<f64> {
-    problem
-        .top_interface
+    interface_split(problem.top_interface.as_ref())
+}
+
+/// [`quadrature_split`] of a top interface.
+pub fn interface_split(interface: Option<&TopInterface>) -> Option<f64> {
+    interface
         .filter(|i| i.index > 1.0)
         .map(|i| (1.0 - 1.0 / (i.index * i.index)).sqrt())
 }

@@ -218,7 +218,7 @@ pub fn lobe(inputs: &[LobeInput<'_>], o: &LobeOptions) -> Result<LobePlot, PlotE
         .iter()
         .any(|s| s.table.wavelengths.iter().any(|w| w.specular.is_some()))
     {
-        "; the specular reflection of a mirror base (a delta) is not drawn"
+        "; the specular reflection (a delta) of a mirror base or a top interface is not drawn"
     } else {
         ""
     };

@@ -264,16 +264,54 @@ fn inconsistent_or_unsupported_interfaces_are_refused_by_name() {
         "{err}"
     );
     let err = refusal(&json!({"layers": [mie(1.5)], "wavelengths_nm": [550],
-        "base": {"fresnel": {"material": "silver"}},
-        "top_interface": {"smooth": {}}}));
-    assert!(
-        err.contains("base.fresnel") && err.contains("not supported yet"),
-        "{err}"
-    );
-    let err = refusal(&json!({"layers": [mie(1.5)], "wavelengths_nm": [550],
         "top_interface": {"smooth": {"index": 1.5}, "rough": {"alpha": 0.1}}}));
     assert!(err.contains("exactly one of none, smooth, rough"), "{err}");
     let err = refusal(&json!({"layers": [mie(1.5)], "wavelengths_nm": [550],
         "top_interface": {"smooth": {"index": 0.9}}}));
     assert!(err.contains("top_interface.smooth.index"), "{err}");
+}
+
+/// A Fresnel base under the interface: the delta term is the interface's
+/// reflection plus the base's beam that came back through it (listed
+/// apart, summing to it), the interface part is the Fresnel matrix of air
+/// over the binder, and the base part is attenuated along the refracted
+/// direction.
+#[test]
+fn a_fresnel_base_under_the_interface_adds_its_beam_to_the_delta_term() {
+    let layer = |tau: f64| {
+        json!({
+            "layers": [{"optical_thickness": tau, "scatterer": {"mie": {
+                "material": {"n": 2.6, "k": 0.001}, "radius_um": 0.15, "host_index": 1.5}}}],
+            "base": {"fresnel": {"material": {"n": 0.13, "k": 3.99}}},
+            "top_interface": {"smooth": {}},
+            "wavelengths_nm": [550],
+            "solver": {"streams": 8}
+        })
+    };
+    for tau in [0.2, 30.0] {
+        let r = solve(&layer(tau), &[(40.0, 40.0, 180.0)]);
+        let term = &r["specular"][0];
+        let (sum, a, b) = (
+            matrix(&term["mueller"]),
+            matrix(&term["parts"]["interface"]),
+            matrix(&term["parts"]["base_through_interface"]),
+        );
+        for i in 0..4 {
+            for j in 0..4 {
+                assert!((sum[i][j] - a[i][j] - b[i][j]).abs() < 1e-15);
+            }
+        }
+        let want = fresnel_mueller(1.5, 40f64.to_radians().cos());
+        assert!(common::max_diff(&a, &want) < 1e-12, "{a:?}");
+        // Through the layer twice along the internal cosine, `E =
+        // e^{−2τ/μ_i}`, in and out through the interface (T ≈ 0.95 each)
+        // and off silver (R ≈ 0.95): between 0.7 E and E.
+        let mu_i = (1.0 - (40f64.to_radians().sin() / 1.5).powi(2)).sqrt();
+        let e = (-2.0 * tau / mu_i).exp();
+        assert!(
+            b[0][0] > 0.7 * e && b[0][0] < e,
+            "τ = {tau}: {} vs E = {e:e}",
+            b[0][0]
+        );
+    }
 }

@@ -23,7 +23,9 @@
 //! `solver::accuracy`) is present only when the direction pairs were solved,
 //! as the field solve makes none. `specular` (with `--points`) lists the
 //! specular term of a mirror base (conventions §6) or of a smooth top
-//! interface (§8) per incident angle and is empty for other stacks. The per-result `table` object describes the table
+//! interface (§8) per incident angle and is empty for other stacks; with
+//! both, `mueller` is their sum and `parts` lists the interface's
+//! reflection and the base's beam that came back through it. The per-result `table` object describes the table
 //! build at that wavelength (its own solve on the table's polar grid, from
 //! the table's metadata, docs/table-format.md); the top-level `table`
 //! describes the file. Without `--points`, `--field` or `--table` the spec
@@ -379,8 +381,20 @@ fn solve_direct(
                     continue;
                 }
                 seen.push(p.theta_i_deg);
-                if let Some(s) = delta(mu_of_theta_deg(p.theta_i_deg)) {
-                    spec_terms.push(json!({"theta_i_deg": p.theta_i_deg, "mueller": s}));
+                let mu = mu_of_theta_deg(p.theta_i_deg);
+                if let Some(s) = delta(mu) {
+                    let mut term = json!({"theta_i_deg": p.theta_i_deg, "mueller": s});
+                    // A mirror base under an interface: the sum and its parts.
+                    if let Some(i) = &refl.interface
+                        && let Some(through) = &i.through
+                    {
+                        let iv = set.index(mu);
+                        term["parts"] = json!({
+                            "interface": i.specular[iv],
+                            "base_through_interface": through[iv],
+                        });
+                    }
+                    spec_terms.push(term);
                 }
             }
         }

@@ -285,9 +285,8 @@ pub fn interface_index(spec: &Spec) -> Result<Option<HostSpec>, SpecError> {
     }
 }
 
-/// `top_interface`: its index (a host medium, [`interface_index`]); the
-/// parts not solved yet (a rough interface, a Fresnel base beneath) are
-/// refused by name.
+/// `top_interface`: its index (a host medium, [`interface_index`]); a
+/// rough interface (not solved yet) is refused by name.
 fn validate_top_interface(spec: &Spec) -> Result<(), SpecError> {
     if let TopInterfaceSpec::Rough { alpha, .. } = &spec.top_interface {
         return Err(SpecError::new(
@@ -303,13 +302,6 @@ fn validate_top_interface(spec: &Spec) -> Result<(), SpecError> {
     }
     if spec.top_interface.is_none() {
         return Ok(());
-    }
-    if matches!(spec.base, BaseSpec::Fresnel { .. }) {
-        return Err(SpecError::new(
-            "base.fresnel",
-            "a Fresnel base under a top_interface is not supported yet \
-             (black and lambertian bases are)",
-        ));
     }
     interface_index(spec).map(|_| ())
 }

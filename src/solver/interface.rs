@@ -31,14 +31,24 @@
 //! only: its reflection at the interface is part of the quadrature field
 //! `R_q U` (the same radiance, sampled at the nodes).
 //!
-//! Not covered yet, refused by the solver's validation: a mirror base under
-//! the interface (its beam would bounce between the two surfaces as a beam).
+//! Over a mirror base the beam bounces between the two surfaces as a beam:
+//! the beam going down along an internal user cosine `μ` comes back up as
+//! `P b` (`P = e^{−2τ/μ} M_b(μ)`, through the stack twice and off the
+//! base), and the interface sends `R(μ) P b` down again along the same
+//! direction. Every pass is a fresh incident beam, so the stack's response
+//! to the beam is multiplied by the 4×4 gain `G = (I − R P)^{-1}` on the
+//! right, and the light leaving through the interface adds `M_out P G M_in`
+//! to the delta term ([`InterfaceMaps::through`]). Reciprocally, diffuse
+//! light reaching the interface along a user direction is partly reflected
+//! down and comes back off the base along the same direction, unscattered:
+//! the gain `(I − P R)^{-1}` on the left ([`mirror_gains`]).
 
 use super::layer::{TopResponse, identity_minus_product, mm, refined_solve};
 use crate::physics::RefractiveIndex;
 use crate::physics::fresnel;
 use crate::physics::stokes::Mueller;
 use faer::Mat;
+use faer::prelude::*;
 
 /// The interface's maps at the user directions.
 #[derive(Clone, Debug)]
@@ -53,6 +63,9 @@ pub struct InterfaceMaps {
     pub inp: Vec<Mueller>,
     /// Reflection from above at each user direction (the delta term).
     pub specular: Vec<Mueller>,
+    /// Over a mirror base: the part of the delta term that crossed the
+    /// interface twice, per user direction (`M_out P G M_in`).
+    pub through: Option<Vec<Mueller>>,
 }
 
 /// The internal cosine of the direction refracted from the external cosine
@@ -89,7 +102,43 @@ impl InterfaceMaps {
             out,
             inp,
             specular,
+            through: None,
         })
+    }
+
+    /// The whole delta term at user direction `iv`: the interface's
+    /// reflection plus, over a mirror base, what came back through it.
+    pub fn delta(&self, iv: usize) -> Mueller {
+        let mut s = self.specular[iv];
+        if let Some(t) = &self.through {
+            for (row, trow) in s.iter_mut().zip(&t[iv]) {
+                for (x, y) in row.iter_mut().zip(trow) {
+                    *x += y;
+                }
+            }
+        }
+        s
+    }
+
+    /// Set [`InterfaceMaps::through`] for a mirror base `base` under a
+    /// stack whose direct beam transmittance is `e^{−τ/μ}` (`tau`: the
+    /// stack's optical thickness).
+    pub fn set_mirror_base(
+        &mut self,
+        tau: f64,
+        base: &dyn Fn(f64) -> Mueller,
+    ) -> Result<(), super::SolverError> {
+        let gains = mirror_gains(self.index, &self.mu_internal, tau, base, 4)?;
+        let mut through = Vec::with_capacity(gains.beam.len());
+        for (iv, g) in gains.beam.iter().enumerate() {
+            let mu_i = self.mu_internal[iv];
+            let exit =
+                fresnel::beam_transmission_mueller(self.index, 1.0, mu_i).map_err(physics)?;
+            let p = round_trip(tau, mu_i, base);
+            through.push(mul(&exit, &mul(&p, &mul(g, &self.inp[iv]))));
+        }
+        self.through = Some(through);
+        Ok(())
     }
 
     /// `ρ = A x B`: a user-by-beam matrix at the internal cosines (per unit
@@ -141,6 +190,100 @@ impl InterfaceMaps {
             }
         }
         f
+    }
+}
+
+/// `P = e^{−2τ/μ} M_b(μ)`: a beam down along `μ` back up after crossing the
+/// stack twice and reflecting off the base.
+fn round_trip(tau: f64, mu: f64, base: &dyn Fn(f64) -> Mueller) -> Mueller {
+    let e = if mu > 0.0 {
+        (-2.0 * tau / mu).exp()
+    } else {
+        0.0
+    };
+    let mut p = base(mu);
+    for row in &mut p {
+        for x in row.iter_mut() {
+            *x *= e;
+        }
+    }
+    p
+}
+
+fn mul(a: &Mueller, b: &Mueller) -> Mueller {
+    crate::physics::stokes::mul(a, b)
+}
+
+/// The gains of a mirror base under the interface per internal user cosine
+/// (module doc), their leading `ns × ns` blocks meaningful (`ns = 1`: the
+/// scalar `1/(1 − R₁₁ P₁₁)` in `[0][0]`): `beam[iv] = (I − R P)^{-1}` for
+/// the beam going down, `radiance[iu] = (I − P R)^{-1}` for radiance that
+/// reaches the interface from below along a user direction (reflected
+/// down, it returns off the base along the same direction unscattered: a
+/// path the quadrature field cannot hold).
+pub struct MirrorGains {
+    /// Right factor of the beam column block of every user direction.
+    pub beam: Vec<Mueller>,
+    /// Left factor of the user row block of every user direction.
+    pub radiance: Vec<Mueller>,
+}
+
+/// [`MirrorGains`] of a mirror base `base` under a stack of optical
+/// thickness `tau`.
+pub fn mirror_gains(
+    index: f64,
+    mu_internal: &[f64],
+    tau: f64,
+    base: &dyn Fn(f64) -> Mueller,
+    ns: usize,
+) -> Result<MirrorGains, super::SolverError> {
+    let air = RefractiveIndex { n: 1.0, k: 0.0 };
+    let inverse = |x: &Mueller| -> Mueller {
+        let a = Mat::<f64>::from_fn(ns, ns, |p, q| f64::from(p == q) - x[p][q]);
+        let inv = a.partial_piv_lu().solve(Mat::<f64>::identity(ns, ns));
+        let mut g = [[0.0; 4]; 4];
+        for (p, row) in g.iter_mut().enumerate().take(ns) {
+            for (q, v) in row.iter_mut().enumerate().take(ns) {
+                *v = inv[(p, q)];
+            }
+        }
+        g
+    };
+    let (mut beam, mut radiance) = (Vec::new(), Vec::new());
+    for &mu in mu_internal {
+        let r = fresnel::mueller(index, air, mu).map_err(physics)?;
+        let p = round_trip(tau, mu, base);
+        beam.push(inverse(&mul(&r, &p)));
+        radiance.push(inverse(&mul(&p, &r)));
+    }
+    Ok(MirrorGains { beam, radiance })
+}
+
+/// Apply [`MirrorGains`] to a user-by-beam matrix `l` (`ns` rows and
+/// columns per user direction): `G_rad[iu] l[iu, iv] G_beam[iv]`.
+pub fn apply_mirror_gains(l: &mut Mat<f64>, gains: &MirrorGains, ns: usize) {
+    let u = gains.beam.len();
+    let mut block = [[0.0; 4]; 4];
+    for iu in 0..u {
+        for iv in 0..u {
+            for (p, row) in block.iter_mut().enumerate().take(ns) {
+                for (q, x) in row.iter_mut().enumerate().take(ns) {
+                    *x = l[(iu * ns + p, iv * ns + q)];
+                }
+            }
+            let (a, b) = (&gains.radiance[iu], &gains.beam[iv]);
+            for p in 0..ns {
+                for q in 0..ns {
+                    let mut v = 0.0;
+                    for k in 0..ns {
+                        for j in 0..ns {
+                            v += a[p][k] * block[k][j] * b[j][q];
+                        }
+                    }
+                    l[(iu * ns + p, iv * ns + q)] = v;
+                }
+            }
+        }
     }
 }
 

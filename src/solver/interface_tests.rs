@@ -217,7 +217,12 @@ fn a_conservative_half_space_under_an_interface_conserves_energy() {
 #[test]
 fn the_brdf_under_an_interface_is_reciprocal() {
     let mu = [0.15, 0.4, 0.77, 1.0];
-    for base in [Base::Black, Base::Lambertian { albedo: 0.6 }] {
+    let silver = Base::Mirror {
+        mueller: std::sync::Arc::new(|mu| {
+            fresnel::mueller(1.5, RefractiveIndex { n: 0.13, k: 3.99 }, mu).unwrap()
+        }),
+    };
+    for base in [Base::Black, Base::Lambertian { albedo: 0.6 }, silver] {
         let label = format!("{base:?}");
         let mut p = under(Thickness::Finite(0.8), 0.97, gs(), base, 16, Some(1.5));
         p.settings.start_factor = 1e-3;
@@ -243,18 +248,118 @@ fn no_p_light_is_reflected_at_brewsters_angle() {
     assert!((out(-1.0) - r_s).abs() < 1e-15, "s: {} vs {r_s}", out(-1.0));
 }
 
-/// What the interface does not cover yet is refused with a reason.
+/// A bad index is refused with a reason.
 #[test]
-fn unsupported_combinations_are_refused() {
-    let mirror = Base::Mirror {
-        mueller: std::sync::Arc::new(|_| [[0.0; 4]; 4]),
-    };
-    let p = under(Thickness::Finite(1.0), 0.9, gs(), mirror, 8, Some(1.5));
-    let e = reflection(&p, &[0.5]).unwrap_err().to_string();
-    assert!(e.contains("mirror base under a top interface"), "{e}");
+fn bad_indices_are_refused() {
     for bad in [0.5, f64::NAN, f64::INFINITY] {
         let p = under(Thickness::Finite(1.0), 0.9, gs(), Base::Black, 8, Some(bad));
         let e = reflection(&p, &[0.5]).unwrap_err().to_string();
         assert!(e.contains("top_interface.index"), "{e}");
+    }
+}
+
+/// Real Fresnel amplitude coefficients `(r_p, r_s)` from index `n1` into
+/// `n2` at incidence cosine `mu` inside the cone (Born & Wolf, the signs of
+/// `physics::fresnel`), written out here.
+fn rp_rs(n1: f64, n2: f64, mu: f64) -> (f64, f64) {
+    let w = (n2 * n2 - n1 * n1 * (1.0 - mu * mu)).sqrt();
+    (
+        (n2 * n2 * mu - n1 * w) / (n2 * n2 * mu + n1 * w),
+        (n1 * mu - w) / (n1 * mu + w),
+    )
+}
+
+fn dielectric_mirror(n1: f64, n2: f64) -> Base {
+    Base::Mirror {
+        mueller: std::sync::Arc::new(move |mu| {
+            fresnel::mueller(n1, RefractiveIndex { n: n2, k: 0.0 }, mu).unwrap()
+        }),
+    }
+}
+
+/// A non-scattering layer (τ = 0.3, ω = 0) in a binder of 1.5 over a
+/// dielectric base of 2.2: the beam bounces between base and interface,
+/// s and p apart (real coefficients), so the delta term is, per
+/// polarization, `R_e + T² R_b E / (1 − R_i R_b E)` (`E = e^{−2τ/μ_i}`,
+/// `T = 1 − R_e`, `R_i = R_e` by Stokes' relations), and nothing is diffuse.
+#[test]
+fn a_mirror_base_under_the_interface_bounces_the_beam_between_the_two() {
+    let (n, nb, tau) = (1.5, 2.2, 0.3);
+    let mu = [0.2, 0.55, 0.9, 1.0];
+    let p = under(
+        Thickness::Finite(tau),
+        0.0,
+        gs(),
+        dielectric_mirror(n, nb),
+        8,
+        Some(n),
+    );
+    let r = reflection(&p, &mu).unwrap();
+    for (iv, &mu_e) in mu.iter().enumerate() {
+        let mu_i = (1.0 - (1.0 - mu_e * mu_e) / (n * n)).sqrt();
+        let (ep, es) = rp_rs(1.0, n, mu_e);
+        let (bp, bs) = rp_rs(n, nb, mu_i);
+        let e = (-2.0 * tau / mu_i).exp();
+        let total = |re: f64, rb: f64| re + (1.0 - re).powi(2) * rb * e / (1.0 - re * rb * e);
+        let (tp, ts) = (total(ep * ep, bp * bp), total(es * es, bs * bs));
+        let s = r.interface_specular(iv).unwrap();
+        assert!(
+            (s[0][0] - 0.5 * (tp + ts)).abs() < 1e-13,
+            "μ = {mu_e}: {s:?}"
+        );
+        assert!(
+            (s[0][1] - 0.5 * (tp - ts)).abs() < 1e-13,
+            "μ = {mu_e}: {s:?}"
+        );
+        for iu in 0..mu.len() {
+            let f = r.brdf(iu, iv, 0.7);
+            assert!(f.iter().flatten().all(|x| x.abs() < 1e-14), "{f:?}");
+        }
+    }
+}
+
+/// A conservative layer over a perfect conductor (Jones `diag(1, −1)`)
+/// under the interface loses nothing: the delta term plus the diffuse
+/// reflection is all the incident light, and converges to it with the
+/// streams.
+#[test]
+fn a_conservative_layer_over_a_perfect_mirror_under_the_interface_conserves_energy() {
+    let perfect = Base::Mirror {
+        mueller: std::sync::Arc::new(|_| {
+            [
+                [1.0, 0.0, 0.0, 0.0],
+                [0.0, 1.0, 0.0, 0.0],
+                [0.0, 0.0, -1.0, 0.0],
+                [0.0, 0.0, 0.0, -1.0],
+            ]
+        }),
+    };
+    let nodes = gauss_on(64, 0.0, 1.0);
+    let beams = [0.3, 0.7, 1.0];
+    let mut mu: Vec<f64> = nodes.iter().map(|&(m, _)| m).collect();
+    mu.extend(beams);
+    let mut last = f64::INFINITY;
+    for streams in [8, 16, 32] {
+        let p = under(
+            Thickness::Finite(0.5),
+            1.0,
+            gs(),
+            perfect.clone(),
+            streams,
+            Some(1.5),
+        );
+        let r = reflection(&p, &mu).unwrap();
+        let mut worst: f64 = 0.0;
+        for (k, &mu0) in beams.iter().enumerate() {
+            let iv = nodes.len() + k;
+            let mut albedo = r.interface_specular(iv).unwrap()[0][0];
+            for (j, &(m, w)) in nodes.iter().enumerate() {
+                albedo += w * m * r.rho[0][(j * 4, iv * 4)] / mu0;
+            }
+            worst = worst.max((albedo - 1.0).abs());
+        }
+        eprintln!("N = {streams}: |albedo − 1| ≤ {worst:.2e}");
+        assert!(worst < 2e-3 && worst < last, "N = {streams}: {worst:e}");
+        last = worst;
     }
 }

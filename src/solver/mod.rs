@@ -94,10 +94,28 @@ pub fn reflection_observed(
     let ns = if s.polarized { 4 } else { 1 };
     // Under a top interface the layers see the user directions refracted
     // into the binder (`interface`); the response is mapped back to air.
-    let maps = match &problem.top_interface {
+    let tau_total: f64 = original.layers.iter().map(|l| l.thickness.value()).sum();
+    let mut maps = match &problem.top_interface {
         Some(i) => Some(interface::InterfaceMaps::new(i.index, mu_user)?),
         None => None,
     };
+    // Over a mirror base the beam bounces between base and interface: the
+    // delta term's part through the interface (with the true direct
+    // transmittance) and the gains of the beam and of the radiance along
+    // the user directions (with the solved problem's, delta-M scaled: its
+    // forward peak travels with the beam).
+    let mut gain = None;
+    if let (Some(m), Base::Mirror { mueller }) = (maps.as_mut(), &problem.base) {
+        m.set_mirror_base(tau_total, mueller.as_ref())?;
+        let tau_solved: f64 = problem.layers.iter().map(|l| l.thickness.value()).sum();
+        gain = Some(interface::mirror_gains(
+            m.index,
+            &m.mu_internal,
+            tau_solved,
+            mueller.as_ref(),
+            ns,
+        )?);
+    }
     let grid = Grid::split(
         s,
         maps.as_ref().map_or(mu_user, |m| &m.mu_internal),
@@ -124,7 +142,13 @@ pub fn reflection_observed(
             }
         };
         match (&maps, &rq) {
-            (Some(maps), Some(rq)) => maps.to_external(&interface::under_interface(&top, rq), ns),
+            (Some(maps), Some(rq)) => {
+                let mut l = interface::under_interface(&top, rq);
+                if let Some(g) = &gain {
+                    interface::apply_mirror_gains(&mut l, g, ns);
+                }
+                maps.to_external(&l, ns)
+            }
             _ => top.ruu,
         }
     };
@@ -136,7 +160,6 @@ pub fn reflection_observed(
         one_order,
         on_orders,
     )?;
-    let tau_total: f64 = original.layers.iter().map(|l| l.thickness.value()).sum();
     // The secondary-scattering correction of truncated layers is a Fourier
     // series at the user cosines (inside the binder under an interface):
     // added to the solve's coefficients (all orders of the full series), so

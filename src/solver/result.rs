@@ -115,11 +115,13 @@ impl ReflectionFourier {
 
 impl ReflectionFourier {
     /// The delta term of the mirror direction for a beam along `mu[iv]`
-    /// from the top interface's reflection (Mueller matrix of reflected
-    /// over incident flux), if the problem has one. A mirror base's term is
-    /// the caller's (its matrix and `direct`²).
+    /// under a top interface (Mueller matrix of reflected over incident
+    /// flux): its reflection plus, over a mirror base, the base's beam that
+    /// came back through it ([`interface::InterfaceMaps::delta`]). Without
+    /// an interface a mirror base's term is the caller's (its matrix and
+    /// `direct`²).
     pub fn interface_specular(&self, iv: usize) -> Option<Mueller> {
-        self.interface.as_ref().map(|i| i.specular[iv])
+        self.interface.as_ref().map(|i| i.delta(iv))
     }
 }
 

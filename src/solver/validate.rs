@@ -77,18 +77,13 @@ pub(super) fn validate(problem: &Problem, mu_user: &[f64]) -> Result<(), SolverE
             check_resolved(i, l, s.streams)?;
         }
     }
-    if let Some(i) = &problem.top_interface {
-        if !(i.index.is_finite() && i.index >= 1.0) {
-            return Err(SolverError::Invalid(format!(
-                "top_interface.index = {} must be a finite real index ≥ 1",
-                i.index
-            )));
-        }
-        if matches!(problem.base, Base::Mirror { .. }) {
-            return Err(SolverError::Invalid(
-                "a mirror base under a top interface is not supported yet".into(),
-            ));
-        }
+    if let Some(i) = &problem.top_interface
+        && !(i.index.is_finite() && i.index >= 1.0)
+    {
+        return Err(SolverError::Invalid(format!(
+            "top_interface.index = {} must be a finite real index ≥ 1",
+            i.index
+        )));
     }
     for &mu in mu_user {
         if !(mu > 0.0 && mu <= 1.0) {

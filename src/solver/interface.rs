@@ -46,7 +46,7 @@
 use super::layer::{TopResponse, identity_minus_product, mm, refined_solve};
 use crate::physics::RefractiveIndex;
 use crate::physics::fresnel;
-use crate::physics::stokes::Mueller;
+use crate::physics::stokes::{Mueller, mul};
 use faer::Mat;
 use faer::prelude::*;
 
@@ -208,10 +208,6 @@ fn round_trip(tau: f64, mu: f64, base: &dyn Fn(f64) -> Mueller) -> Mueller {
         }
     }
     p
-}
-
-fn mul(a: &Mueller, b: &Mueller) -> Mueller {
-    crate::physics::stokes::mul(a, b)
 }
 
 /// The gains of a mirror base under the interface per internal user cosine

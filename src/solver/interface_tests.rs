@@ -12,6 +12,7 @@ fn gs() -> GreekCoefficients {
     crate::physics::expansion::test_data::garcia_siewert()
 }
 
+/// [`super::law_tests::problem`] under an interface of `index`.
 fn under(
     tau: Thickness,
     albedo: f64,
@@ -21,18 +22,21 @@ fn under(
     index: Option<f64>,
 ) -> Problem {
     Problem {
-        layers: vec![Layer {
-            thickness: tau,
-            albedo,
-            coef,
-        }],
-        base,
-        settings: Settings {
-            streams,
-            ..Settings::default()
-        },
         top_interface: index.map(|index| TopInterface { index }),
+        ..super::law_tests::problem(tau, albedo, coef, base, streams)
     }
+}
+
+/// The plane albedo of the beam along user direction `iv` (cosine `mu0`):
+/// the delta term's share plus the BRDF integrated over the outgoing
+/// hemisphere on the quadrature `nodes` (the first user directions).
+fn plane_albedo(r: &ReflectionFourier, nodes: &[(f64, f64)], iv: usize, mu0: f64) -> f64 {
+    let diffuse: f64 = nodes
+        .iter()
+        .enumerate()
+        .map(|(j, &(m, w))| w * m * r.rho[0][(j * 4, iv * 4)] / mu0)
+        .sum();
+    r.interface_specular(iv).unwrap()[0][0] + diffuse
 }
 
 /// Gauss–Legendre `(node, weight)` pairs on `[a, b]`.
@@ -197,11 +201,7 @@ fn a_conservative_half_space_under_an_interface_conserves_energy() {
         let r = reflection(&p, &mu).unwrap();
         let mut worst: f64 = 0.0;
         for (k, &mu0) in beams.iter().enumerate() {
-            let iv = nodes.len() + k;
-            let mut albedo = r.interface_specular(iv).unwrap()[0][0];
-            for (j, &(m, w)) in nodes.iter().enumerate() {
-                albedo += w * m * r.rho[0][(j * 4, iv * 4)] / mu0;
-            }
+            let albedo = plane_albedo(&r, &nodes, nodes.len() + k, mu0);
             worst = worst.max((albedo - 1.0).abs());
             eprintln!(
                 "N = {streams}, μ0 = {mu0}: albedo − 1 = {:.2e}",
@@ -351,11 +351,7 @@ fn a_conservative_layer_over_a_perfect_mirror_under_the_interface_conserves_ener
         let r = reflection(&p, &mu).unwrap();
         let mut worst: f64 = 0.0;
         for (k, &mu0) in beams.iter().enumerate() {
-            let iv = nodes.len() + k;
-            let mut albedo = r.interface_specular(iv).unwrap()[0][0];
-            for (j, &(m, w)) in nodes.iter().enumerate() {
-                albedo += w * m * r.rho[0][(j * 4, iv * 4)] / mu0;
-            }
+            let albedo = plane_albedo(&r, &nodes, nodes.len() + k, mu0);
             worst = worst.max((albedo - 1.0).abs());
         }
         eprintln!("N = {streams}: |albedo − 1| ≤ {worst:.2e}");

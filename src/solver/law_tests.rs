@@ -36,7 +36,8 @@ fn unresolved_backward_peaks_are_refused_with_the_streams_they_need() {
     assert!(reflection(&dark, &mu).is_ok());
 }
 
-fn problem(
+/// One layer on `base` at `streams` (no top interface).
+pub(super) fn problem(
     tau: Thickness,
     albedo: f64,
     coef: GreekCoefficients,

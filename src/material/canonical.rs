@@ -18,8 +18,7 @@
 //!    `1e-6`, `0.973527`; integers such as `streams` without a fraction).
 
 use super::{
-    BaseSpec, DEFAULT_STREAMS, ExpansionSpec, HostSpec, MaterialSpec, ScattererSpec, Spec,
-    TopInterfaceSpec,
+    DEFAULT_STREAMS, ExpansionSpec, HostSpec, MaterialSpec, ScattererSpec, Spec, TopInterfaceSpec,
 };
 use crate::physics::materials;
 use serde_json::Value;
@@ -57,11 +56,7 @@ pub fn normalized(spec: &Spec) -> Spec {
         Some(HostSpec::Material(_)) => None,
         None => Some(1.0),
     };
-    if let BaseSpec::Fresnel {
-        material,
-        ambient_index,
-    } = &mut s.base
-    {
+    if let Some((material, ambient_index)) = s.base.surface_mut() {
         canonical_material(material);
         if let Some(n) = last_host {
             ambient_index.get_or_insert(n);

@@ -255,12 +255,13 @@ pub(super) trait OneOf {
 }
 
 impl OneOf for BaseSpec {
-    const KEYS: &'static [&'static str] = &["black", "lambertian", "fresnel"];
+    const KEYS: &'static [&'static str] = &["black", "lambertian", "fresnel", "rough_fresnel"];
     fn key_of(&self) -> &'static str {
         match self {
             Self::Black => "black",
             Self::Lambertian { .. } => "lambertian",
             Self::Fresnel { .. } => "fresnel",
+            Self::RoughFresnel { .. } => "rough_fresnel",
         }
     }
 }

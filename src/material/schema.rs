@@ -513,6 +513,52 @@ pub enum BaseSpec {
         #[serde(default, skip_serializing_if = "Option::is_none")]
         ambient_index: Option<f64>,
     },
+    /// Rough (GGX microfacet, isotropic) Fresnel surface with the binder
+    /// above it (docs/spec.md, Bases).
+    RoughFresnel {
+        /// Base material.
+        material: MaterialSpec,
+        /// GGX roughness `α` in `[0.05, 1]`.
+        alpha: f64,
+        /// As for `fresnel`.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        ambient_index: Option<f64>,
+    },
+}
+
+impl BaseSpec {
+    /// A reflecting surface's key (`"fresnel"`, `"rough_fresnel"`), material
+    /// and ambient index; `None` for `black` and `lambertian`.
+    pub fn surface(&self) -> Option<(&'static str, &MaterialSpec, Option<f64>)> {
+        match self {
+            BaseSpec::Fresnel {
+                material,
+                ambient_index,
+            } => Some(("fresnel", material, *ambient_index)),
+            BaseSpec::RoughFresnel {
+                material,
+                ambient_index,
+                ..
+            } => Some(("rough_fresnel", material, *ambient_index)),
+            BaseSpec::Black | BaseSpec::Lambertian { .. } => None,
+        }
+    }
+
+    /// [`BaseSpec::surface`]'s material and ambient index, to rewrite.
+    pub fn surface_mut(&mut self) -> Option<(&mut MaterialSpec, &mut Option<f64>)> {
+        match self {
+            BaseSpec::Fresnel {
+                material,
+                ambient_index,
+            }
+            | BaseSpec::RoughFresnel {
+                material,
+                ambient_index,
+                ..
+            } => Some((material, ambient_index)),
+            BaseSpec::Black | BaseSpec::Lambertian { .. } => None,
+        }
+    }
 }
 
 /// The surface above the layers (docs/spec.md, Top interface): `"none"`

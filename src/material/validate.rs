@@ -24,6 +24,11 @@ const R_DEPOLARIZATION: &str = "[0, 0.99]";
 const R_G: &str = "[-0.999, 0.999]";
 const R_N: &str = "(0, 100]";
 const R_K: &str = "[0, 100]";
+/// Smallest GGX roughness of a rough base: below it the lobe needs more
+/// azimuthal orders than it is worth (docs/solver.md, Rough bases); a
+/// smoother surface is the `fresnel` base.
+pub const ALPHA_MIN: f64 = 0.05;
+const R_ALPHA: &str = "[0.05, 1] (a smoother surface is the `fresnel` base)";
 const R_WAVELENGTH: &str = "[100, 100000] nm";
 const R_STREAMS: &str = "[1, 512] (integer)";
 const R_TOLERANCE: &str = "[1e-10, 0.5]";
@@ -121,7 +126,10 @@ fn needs_wavelength(spec: &Spec) -> bool {
     let named = |m: &MaterialSpec| !m.is_constant();
     spec.layers.iter().any(|l| {
         matches!(l.optical_scatterer(), Some(ScattererSpec::Mie(_))) || l.pigments.is_some()
-    }) || matches!(&spec.base, BaseSpec::Fresnel { material, .. } if named(material))
+    }) || spec
+        .base
+        .surface()
+        .is_some_and(|(_, material, _)| named(material))
         || spec.top_interface.index().is_some_and(|h| !h.is_constant())
 }
 
@@ -161,13 +169,20 @@ pub fn validate(spec: &Spec) -> Result<(), SpecError> {
         BaseSpec::Lambertian { albedo } => {
             finite_in("base.lambertian.albedo", *albedo, 0.0, 1.0, R_UNIT)?
         }
-        BaseSpec::Fresnel {
-            material,
-            ambient_index,
-        } => {
-            validate_material("base.fresnel.material", material)?;
+        BaseSpec::Fresnel { .. } | BaseSpec::RoughFresnel { .. } => {
+            let (key, material, ambient_index) = spec.base.surface().expect("a surface base");
+            validate_material(&format!("base.{key}.material"), material)?;
             if let Some(a) = ambient_index {
-                finite_in("base.fresnel.ambient_index", *a, 1.0, 10.0, R_INDEX_REAL)?;
+                finite_in(
+                    &format!("base.{key}.ambient_index"),
+                    a,
+                    1.0,
+                    10.0,
+                    R_INDEX_REAL,
+                )?;
+            }
+            if let BaseSpec::RoughFresnel { alpha, .. } = &spec.base {
+                finite_in("base.rough_fresnel.alpha", *alpha, ALPHA_MIN, 1.0, R_ALPHA)?;
             }
         }
     }

@@ -6,6 +6,7 @@
 pub mod expansion;
 pub mod fresnel;
 pub mod materials;
+pub mod microfacet;
 pub mod mie;
 pub mod psd;
 pub mod quadrature;

@@ -72,6 +72,18 @@ pub fn rotation(sigma_rad: f64) -> Mueller {
     ]
 }
 
+/// [`rotation`] by the angle `σ` with `cos σ = c`, `sin σ = s` (`c² + s² = 1`):
+/// the frame turned from `x` to `x' = c x + s y`, without an `atan2`.
+pub fn rotation_cs(c: f64, s: f64) -> Mueller {
+    let (cos2, sin2) = (c * c - s * s, 2.0 * c * s);
+    [
+        [1.0, 0.0, 0.0, 0.0],
+        [0.0, cos2, sin2, 0.0],
+        [0.0, -sin2, cos2, 0.0],
+        [0.0, 0.0, 0.0, 1.0],
+    ]
+}
+
 /// Matrix product `a · b` (`(a b)_ij = Σ_k a_ik b_kj`): apply `b` first, then `a`.
 pub fn mul(a: &Mueller, b: &Mueller) -> Mueller {
     let mut c = [[0.0; 4]; 4];

@@ -11,6 +11,7 @@ use crate::material::{
     ThicknessSpec,
 };
 use crate::physics::expansion::GreekCoefficients;
+use crate::physics::microfacet::RoughSurface;
 use crate::physics::{RefractiveIndex, fresnel};
 use crate::solver::{self, Base, Layer, Problem, Settings, Thickness};
 use std::sync::Arc;
@@ -125,23 +126,33 @@ fn layer(i: usize, l: &LayerSpec, wavelength_nm: Option<f64>) -> Result<Layer, S
 }
 
 /// The ambient (real) and base (complex) refractive indices of a Fresnel
-/// base at one wavelength, validated; `None` for other bases. The ambient
-/// index defaults to the real part of the medium of the last layer's
-/// particles (a Mie host, a film's binder) at that wavelength, else 1.
+/// (mirror) base at one wavelength, validated; `None` for other bases
+/// ([`surface_indices`]).
 pub fn fresnel_indices(
     spec: &Spec,
     wavelength_nm: Option<f64>,
 ) -> Result<Option<(f64, RefractiveIndex)>, SpecError> {
-    let BaseSpec::Fresnel {
-        material,
-        ambient_index,
-    } = &spec.base
-    else {
+    if !matches!(spec.base, BaseSpec::Fresnel { .. }) {
+        return Ok(None);
+    }
+    surface_indices(spec, wavelength_nm)
+}
+
+/// The ambient (real) and base (complex) refractive indices of a smooth or
+/// rough Fresnel base at one wavelength, validated; `None` for other bases.
+/// The ambient index defaults to the real part of the medium of the last
+/// layer's particles (a Mie host, a film's binder) at that wavelength,
+/// else 1.
+pub fn surface_indices(
+    spec: &Spec,
+    wavelength_nm: Option<f64>,
+) -> Result<Option<(f64, RefractiveIndex)>, SpecError> {
+    let Some((key, material, ambient_index)) = spec.base.surface() else {
         return Ok(None);
     };
-    let n2 = resolve_index("base.fresnel.material", material, wavelength_nm)?;
+    let n2 = resolve_index(&format!("base.{key}.material"), material, wavelength_nm)?;
     let n1 = match (ambient_index, spec.layers.last().and_then(|l| l.host())) {
-        (Some(n), _) => *n,
+        (Some(n), _) => n,
         (None, Some(host)) => {
             let i = spec.layers.len() - 1;
             super::mie::host_real_index(
@@ -152,7 +163,8 @@ pub fn fresnel_indices(
         }
         (None, None) => 1.0,
     };
-    fresnel::mueller(n1, n2, 0.5).map_err(|e| SpecError::new("base.fresnel", e.to_string()))?;
+    fresnel::mueller(n1, n2, 0.5)
+        .map_err(|e| SpecError::new(format!("base.{key}"), e.to_string()))?;
     Ok(Some((n1, n2)))
 }
 
@@ -176,6 +188,14 @@ pub fn problem(spec: &Spec, wavelength_nm: Option<f64>) -> Result<Problem, SpecE
                 fresnel_indices(spec, wavelength_nm)?.expect("a Fresnel base has indices");
             Base::Mirror {
                 mueller: fresnel_mirror(n1, n2),
+            }
+        }
+        BaseSpec::RoughFresnel { alpha, .. } => {
+            let (n1, n2) =
+                surface_indices(spec, wavelength_nm)?.expect("a rough Fresnel base has indices");
+            Base::Rough {
+                surface: RoughSurface::new(n1, n2, *alpha)
+                    .map_err(|e| SpecError::new("base.rough_fresnel", e.to_string()))?,
             }
         }
     };

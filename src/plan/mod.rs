@@ -37,7 +37,7 @@ pub use id::{
 };
 pub use lower::{
     StreamPolicy, fresnel_indices, fresnel_mirror, layer_optics, problem, settings, stream_policy,
-    wavelengths,
+    surface_indices, wavelengths,
 };
 pub use mie::{max_size_parameter, populations};
 pub use parts::{WavelengthPart, wavelength_parts};

@@ -4,9 +4,9 @@
 //! non-Mie layers and the base, hence live with the lowering.
 
 use super::mie::{host_path, populations};
-use super::{StreamPolicy, fresnel_indices, layer_optics, stream_policy, wavelengths};
+use super::{StreamPolicy, layer_optics, stream_policy, surface_indices, wavelengths};
 use crate::material::{
-    BaseSpec, LayerForm, MaterialSpec, MieSpec, ScattererSpec, Spec, SpecError, ThicknessSpec,
+    LayerForm, MaterialSpec, MieSpec, ScattererSpec, Spec, SpecError, ThicknessSpec,
 };
 use crate::physics::RefractiveIndex;
 use crate::solver::{self, Layer, SolverError, Thickness};
@@ -67,13 +67,13 @@ pub fn check_solvable(spec: &Spec, max_streams: usize) -> Result<(), SpecError> 
                 check_population(&mp, &m, index, host.n, wl, k)?;
             }
         }
-        if let BaseSpec::Fresnel { material, .. } = &spec.base {
-            material_index(material, wl).map_err(|e| at(e, "base.fresnel.material"))?;
-            fresnel_indices(spec, Some(wl))?;
+        if let Some((key, material, _)) = spec.base.surface() {
+            material_index(material, wl).map_err(|e| at(e, &format!("base.{key}.material")))?;
+            surface_indices(spec, Some(wl))?;
         }
     }
-    if matches!(spec.base, BaseSpec::Fresnel { .. }) && spec.wavelengths_nm.is_none() {
-        fresnel_indices(spec, None)?;
+    if spec.base.surface().is_some() && spec.wavelengths_nm.is_none() {
+        surface_indices(spec, None)?;
     }
     let (path, streams) = match stream_policy(spec) {
         StreamPolicy::Fixed(n) => ("solver.streams", n),

@@ -81,9 +81,9 @@ pub fn internal_field(
             "the internal field under a top interface is not supported yet".into(),
         ));
     }
-    if matches!(problem.base, Base::Mirror { .. }) {
+    if matches!(problem.base, Base::Mirror { .. } | Base::Rough { .. }) {
         return Err(SolverError::Invalid(
-            "the internal field is not available over a mirror base".into(),
+            "the internal field is not available over a mirror or rough base".into(),
         ));
     }
     let s = &problem.settings;

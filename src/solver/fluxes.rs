@@ -78,6 +78,10 @@ pub fn stream_fluxes(problem: &Problem, mu0: &[f64]) -> Result<StreamFluxes, Sol
             flux(&add(&stack, &lambertian_ops(&grid, *albedo, 0), false).rb),
             None,
         ),
+        (Base::Rough { surface }, false) => {
+            let base = super::rough_base::RoughProjection::new(surface, &grid, grid.split);
+            (flux(&add(&stack, &base.ops(0), false).rb), None)
+        }
         (Base::Mirror { mueller }, false) => {
             let mq = mirror_blocks(&grid.mu_q, ns, mueller.as_ref());
             let mu = mirror_blocks(&grid.mu_u, ns, mueller.as_ref());

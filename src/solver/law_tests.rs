@@ -103,6 +103,7 @@ fn conservative_layers_conserve_energy() {
                 mu_q: mu_q.clone(),
                 w_q: w_q.clone(),
                 mu_u: vec![0.2, 0.6, 1.0],
+                split: None,
             };
             let layer = Layer {
                 thickness: if tau.is_finite() {
@@ -153,6 +154,7 @@ fn diffusion_continuation_matches_doubling() {
         mu_q,
         w_q,
         mu_u: vec![0.2, 0.6, 1.0],
+        split: None,
     };
     let s = Settings::default();
     for coef in [GreekCoefficients::rayleigh(0.0), gs()] {
@@ -252,6 +254,7 @@ fn perfect_mirror_equals_doubled_layer() {
         mu_q,
         w_q,
         mu_u: vec![0.3, 0.7, 1.0],
+        split: None,
     };
     let s_mat: Mueller = [
         [1.0, 0.0, 0.0, 0.0],

@@ -34,6 +34,9 @@ mod orders;
 pub mod phase;
 mod problem;
 mod result;
+mod rough_base;
+#[cfg(test)]
+mod rough_base_tests;
 pub mod secondary;
 #[cfg(test)]
 mod symmetry_tests;
@@ -125,8 +128,17 @@ pub fn reflection_observed(
         Some(i) => Some(interface::internal_reflection(i.index, &grid.mu_q, ns)?),
         None => None,
     };
-    let orders = order_count(problem);
     let (semi_infinite, full) = base_coupling(problem);
+    let rough = match &problem.base {
+        Base::Rough { surface } if !semi_infinite => {
+            Some(rough_base::RoughProjection::new(surface, &grid, grid.split))
+        }
+        _ => None,
+    };
+    let orders = capped_orders(
+        problem,
+        layer_orders(problem).max(rough.as_ref().map_or(0, |r| r.order_count())),
+    );
     let one_order = |m: usize| -> Mat<f64> {
         let stack = stack_ops(problem, &grid, m, full);
         let top = match &problem.base {
@@ -139,6 +151,10 @@ pub fn reflection_observed(
                 let mq = mirror_blocks(&grid.mu_q, ns, mueller.as_ref());
                 let mu = mirror_blocks(&grid.mu_u, ns, mueller.as_ref());
                 add_mirror(&stack, &mq, &mu)
+            }
+            Base::Rough { .. } => {
+                let base = rough.as_ref().expect("projected above").ops(m);
+                TopResponse::of(add(&stack, &base, false))
             }
         };
         match (&maps, &rq) {

@@ -18,6 +18,8 @@ pub(super) struct Grid {
     pub(super) mu_q: Vec<f64>,
     pub(super) w_q: Vec<f64>,
     pub(super) mu_u: Vec<f64>,
+    /// Where the ordinates are split ([`discrete_ordinates`]).
+    pub(super) split: Option<f64>,
 }
 
 /// The discrete ordinates of one hemisphere: [`double_gauss`] of
@@ -60,6 +62,7 @@ impl Grid {
             mu_q,
             w_q,
             mu_u: mu_u.to_vec(),
+            split,
         }
     }
 }
@@ -310,15 +313,28 @@ pub(super) fn mirror_blocks(mus: &[f64], ns: usize, mueller: &dyn Fn(f64) -> Mue
     m
 }
 
-/// Highest order any layer's phase matrix carries.
+/// Highest order any layer's phase matrix carries (a rough base's orders
+/// come on top: [`rough_base::RoughProjection::order_count`]).
 pub(super) fn order_count(problem: &Problem) -> usize {
-    let l = problem
+    capped_orders(problem, layer_orders(problem))
+}
+
+/// Orders any layer's phase matrix reaches, whatever the settings.
+pub(super) fn layer_orders(problem: &Problem) -> usize {
+    problem
         .layers
         .iter()
         .map(|l| l.coef.beta.len())
         .max()
-        .unwrap_or(1);
-    let m = problem.settings.max_order.map_or(l, |mo| (mo + 1).min(l));
+        .unwrap_or(1)
+}
+
+/// `orders` capped by [`Settings::max_order`], at least one.
+pub(super) fn capped_orders(problem: &Problem, orders: usize) -> usize {
+    let m = problem
+        .settings
+        .max_order
+        .map_or(orders, |mo| (mo + 1).min(orders));
     m.max(1)
 }
 
@@ -337,7 +353,14 @@ pub(super) fn base_coupling(problem: &Problem) -> (bool, bool) {
 
 /// The operators of the whole stack (base excluded) for Fourier order `m`,
 /// layers of thickness 0 skipped, vacuum for an empty stack.
+///
+/// In an order no layer's phase matrix reaches (only a rough base reflects
+/// there) the stack only attenuates, in closed form ([`Ops::attenuator`]).
 pub(super) fn stack_ops(problem: &Problem, grid: &Grid, m: usize, full: bool) -> Ops {
+    if m >= layer_orders(problem) {
+        let tau: f64 = problem.layers.iter().map(|l| l.thickness.value()).sum();
+        return Ops::attenuator(tau, &grid.mu_q, &grid.mu_u, grid.ns);
+    }
     let mut stack: Option<Ops> = None;
     for layer in &problem.layers {
         if matches!(layer.thickness, Thickness::Finite(t) if t <= 0.0) {

@@ -51,6 +51,13 @@ pub enum Base {
         /// Reflection Mueller matrix as a function of the incidence cosine.
         mueller: std::sync::Arc<dyn Fn(f64) -> Mueller + Send + Sync>,
     },
+    /// Rough surface of GGX microfacets
+    /// ([`crate::physics::microfacet::RoughSurface`]), reflecting into
+    /// every Fourier order ([`super::rough_base`]).
+    Rough {
+        /// The surface (its ambient index is the binder's).
+        surface: crate::physics::microfacet::RoughSurface,
+    },
 }
 
 impl std::fmt::Debug for Base {
@@ -61,6 +68,7 @@ impl std::fmt::Debug for Base {
             Base::Mirror { mueller } => {
                 write!(f, "Mirror {{ normal incidence: {:?} }}", mueller(1.0))
             }
+            Base::Rough { surface } => write!(f, "Rough {{ {surface:?} }}"),
         }
     }
 }

@@ -33,6 +33,7 @@ fn gs_layer(tau: f64) -> (Grid, Layer) {
         mu_q,
         w_q,
         mu_u: vec![0.1, 0.45, 0.8, 1.0],
+        split: None,
     };
     (
         grid,

@@ -68,6 +68,12 @@ pub(super) fn base_name(spec: &Spec) -> String {
             MaterialSpec::Index { n, k } => format!("mirror n = {n} + {k}i"),
             other => other.label(),
         },
+        BaseSpec::RoughFresnel {
+            material, alpha, ..
+        } => match material {
+            MaterialSpec::Index { n, k } => format!("rough n = {n} + {k}i, α = {alpha}"),
+            other => format!("rough {}, α = {alpha}", other.label()),
+        },
     }
 }
 

@@ -109,6 +109,22 @@ impl Ops {
         }
     }
 
+    /// A slab of optical thickness `tau` that does not scatter (in this
+    /// Fourier order): direct transmission `e^{−τ/μ}` only, along the
+    /// quadrature cosines `mu_q` and the user cosines `mu_u`.
+    pub fn attenuator(tau: f64, mu_q: &[f64], mu_u: &[f64], ns: usize) -> Self {
+        let mut o = Self::vacuum(mu_q.len() * ns, mu_u.len() * ns, ns);
+        for (i, &mu) in mu_q.iter().enumerate() {
+            let e = (-tau / mu).exp();
+            for p in 0..ns {
+                o.t[(i * ns + p, i * ns + p)] = e;
+                o.ts[(i * ns + p, i * ns + p)] = e;
+            }
+        }
+        o.eu = mu_u.iter().map(|&mu| (-tau / mu).exp()).collect();
+        o
+    }
+
     /// A reflector with no transmission (a base): all `t` blocks zero.
     pub fn reflector(n: usize, nu: usize, ns: usize) -> Self {
         let mut o = Self::vacuum(n, nu, ns);

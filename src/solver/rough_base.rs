@@ -1,0 +1,380 @@
+//! A rough (microfacet) base per Fourier order: the operators of
+//! [`crate::physics::microfacet::RoughSurface`] on the solver's grid
+//! (docs/solver.md, "Rough bases").
+//!
+//! **Azimuth.** For each pair of cosines the BRDF is sampled at `P`
+//! equally spaced propagation azimuths and its Fourier coefficients taken by
+//! a real FFT (the trapezoidal rule, spectrally accurate for a smooth
+//! periodic function). `P` doubles from 32 until the coefficients of the top
+//! quarter of the band are below [`AZIMUTH_TOLERANCE`] (the function is
+//! resolved, so the aliasing error is below it too), at most
+//! [`MAX_AZIMUTHS`]. The mirror symmetry
+//! `f(−Δφ) = D f(Δφ) D` halves the evaluations. In the S1 set of
+//! conventions §7 order `m` of the response to a unit delta in `μ'` is
+//! `ρ^m = 2π μ' F^m` with `F^m = (1/2π)∫ f cos mΔφ` in the IQ/IQ and UV/UV
+//! blocks, `+(1/2π)∫ f sin mΔφ` in the UV←IQ block and `−` that in IQ←UV.
+//!
+//! **Polar angle.** The lobe is as narrow as `α` in angle, far narrower
+//! than the gaps between discrete ordinates at small `α`, so neither its
+//! input nor its output is sampled at the ordinates alone. The radiance
+//! coming in is the interpolant of the ordinates (Lagrange `ℓ_j`, on each
+//! part of a split quadrature); the radiance going out is projected back
+//! onto them so that its flux-weighted moments are kept,
+//! `Σ_i w_i μ_i g(μ_i) L_i = ∫ g μ L dμ` for `g` of degree `< N`. Both
+//! integrals run over fine composite Gauss nodes `μ_k` (weights `v_k`,
+//! panels of width `α/2` in polar angle, at most 0.2 rad, every ordinate
+//! part on its own):
+//!
+//! ```text
+//! r_ij   = Σ_k Σ_l v_k μ_k ℓ_i(μ_k) ρ(μ_k, μ_l) v_l ℓ_j(μ_l) / (w_i μ_i)   quadrature ← quadrature
+//! rb_iv  = Σ_k v_k μ_k ℓ_i(μ_k) ρ(μ_k, μ_v) / (w_i μ_i)                      quadrature ← beam
+//! ru_uj  = Σ_l ρ(μ_u, μ_l) v_l ℓ_j(μ_l)                                        user ← quadrature
+//! ruu_uv = ρ(μ_u, μ_v)                                                         user ← beam
+//! ```
+//!
+//! For a smooth BRDF these are the collocation blocks of a Lambertian base
+//! (`r_ij ≈ ρ(μ_i, μ_j) w_j`). `w_i μ_i r_ij` is symmetric as reciprocity
+//! asks (up to `Δ·ᵀΔ`), every column keeps the fine grid's flux exactly
+//! (`Σ_i ℓ_i = 1`), and as `α → 0`, since the Gauss rule integrates
+//! `ℓ_i ℓ_j μ` exactly (`= w_i μ_i δ_ij`), the blocks tend to the mirror's
+//! `δ_ij M_F(μ_i)` wherever the beam lands, between ordinates included.
+
+use super::layer::Ops;
+use super::orders::Grid;
+use crate::physics::microfacet::RoughSurface;
+use crate::physics::quadrature::gauss_legendre_on;
+use faer::Mat;
+use rayon::prelude::*;
+use realfft::RealFftPlanner;
+use std::f64::consts::PI;
+
+/// Size of the Fourier coefficients at which a pair's azimuthal series
+/// counts as resolved, in units of the cosine-weighted BRDF `f μ_out μ_in`
+/// (at most `1/π` for a white Lambertian surface): the error in what the
+/// pair adds to any flux. Pairs near the horizon, whose lobe in azimuth
+/// narrows like `α μ` but carries little flux, stop early.
+pub const AZIMUTH_TOLERANCE: f64 = 1e-8;
+
+/// Most azimuth samples per pair of cosines.
+pub const MAX_AZIMUTHS: usize = 1 << 13;
+
+/// Gauss nodes per fine panel.
+const PANEL_NODES: usize = 6;
+
+/// The rough base's operators for every Fourier order it reflects into:
+/// each `ns × ns` entry of each block as its own Fourier series (most
+/// pairs of directions need few orders; grazing ones many).
+pub struct RoughProjection {
+    ns: usize,
+    nq: usize,
+    nu: usize,
+    /// Series of `r` (`i·nq + j`), `rb` (`i·nu + v`), `ru` (`u·nq + j`),
+    /// `ruu` (`u·nu + v`).
+    blocks: [Vec<Series>; 4],
+}
+
+/// A Fourier series `m = 0..` of one `ns × ns` entry, flattened row-major.
+type Series = Vec<[f64; 16]>;
+
+/// `dst += a · src`, growing `dst` to the length of `src`.
+fn add_series(dst: &mut Series, a: f64, src: &[[f64; 16]]) {
+    if dst.len() < src.len() {
+        dst.resize(src.len(), [0.0; 16]);
+    }
+    for (d, s) in dst.iter_mut().zip(src) {
+        for (x, y) in d.iter_mut().zip(s) {
+            *x += a * y;
+        }
+    }
+}
+
+/// Fine nodes of one part of the ordinates: cosines, weights, and the part's
+/// ordinates' Lagrange basis at each (`basis[k][j]` for the part's `j`-th
+/// ordinate, its index in the grid `first + j`).
+struct Part {
+    first: usize,
+    mu: Vec<f64>,
+    v: Vec<f64>,
+    basis: Vec<Vec<f64>>,
+}
+
+/// Lagrange basis polynomials of `nodes` at `x` (barycentric form).
+fn lagrange(nodes: &[f64], x: f64) -> Vec<f64> {
+    if let Some(j) = nodes.iter().position(|&t| t == x) {
+        let mut e = vec![0.0; nodes.len()];
+        e[j] = 1.0;
+        return e;
+    }
+    let bw: Vec<f64> = (0..nodes.len())
+        .map(|j| {
+            1.0 / (0..nodes.len())
+                .filter(|&l| l != j)
+                .map(|l| nodes[j] - nodes[l])
+                .product::<f64>()
+        })
+        .collect();
+    let terms: Vec<f64> = nodes.iter().zip(&bw).map(|(&t, &b)| b / (x - t)).collect();
+    let sum: f64 = terms.iter().sum();
+    terms.iter().map(|t| t / sum).collect()
+}
+
+/// The parts of the ordinates (split at `split`) with their fine nodes:
+/// panels of width at most `panel_rad` in polar angle.
+fn parts(mu_q: &[f64], split: Option<f64>, panel_rad: f64) -> Vec<Part> {
+    let bounds: Vec<f64> = match split {
+        Some(c) => vec![0.0, c, 1.0],
+        None => vec![0.0, 1.0],
+    };
+    let mut out = Vec::new();
+    for w in bounds.windows(2) {
+        let (lo, hi) = (w[0], w[1]);
+        let idx: Vec<usize> = (0..mu_q.len())
+            .filter(|&i| mu_q[i] > lo && mu_q[i] < hi)
+            .collect();
+        let nodes: Vec<f64> = idx.iter().map(|&i| mu_q[i]).collect();
+        let (th_lo, th_hi) = (hi.acos(), lo.acos());
+        let panels = ((th_hi - th_lo) / panel_rad).ceil().max(1.0) as usize;
+        let (mut mu, mut v) = (Vec::new(), Vec::new());
+        for p in 0..panels {
+            let a = th_lo + (th_hi - th_lo) * p as f64 / panels as f64;
+            let b = th_lo + (th_hi - th_lo) * (p + 1) as f64 / panels as f64;
+            let (x, wx) = gauss_legendre_on(PANEL_NODES, a, b);
+            for (&t, &wt) in x.iter().zip(&wx) {
+                mu.push(t.cos());
+                v.push(wt * t.sin());
+            }
+        }
+        let basis = mu.iter().map(|&x| lagrange(&nodes, x)).collect();
+        out.push(Part {
+            first: idx.first().copied().unwrap_or(0),
+            mu,
+            v,
+            basis,
+        });
+    }
+    out
+}
+
+/// Sign of element `(p, q)` under `f(−Δφ) = D f(Δφ) D`, `D = diag(1,1,−1,−1)`:
+/// `+1` for the even (cosine) blocks, `−1` for the odd (sine) ones.
+fn parity(p: usize, q: usize) -> f64 {
+    if (p < 2) == (q < 2) { 1.0 } else { -1.0 }
+}
+
+/// The S1-set Fourier coefficients `ρ^m = 2π μ_in F^m` (module doc) of the
+/// BRDF at one pair of cosines, `m = 0..`, each `ns × ns` flattened
+/// row-major; converged in azimuth as the module doc says.
+fn pair_series(
+    surface: &RoughSurface,
+    mu_out: f64,
+    mu_in: f64,
+    ns: usize,
+    planner: &mut RealFftPlanner<f64>,
+) -> Vec<[f64; 16]> {
+    let eval = |k: usize, p: usize| surface.mueller(mu_out, mu_in, 2.0 * PI * k as f64 / p as f64);
+    let mut size = 32;
+    // Samples at Δφ_k = 2πk/size for k = 0..=size/2.
+    let mut half: Vec<_> = (0..=size / 2).map(|k| eval(k, size)).collect();
+    loop {
+        let fft = planner.plan_fft_forward(size);
+        let mut input = fft.make_input_vec();
+        let mut spectrum = fft.make_output_vec();
+        let bands = size / 2 + 1;
+        let mut coef = vec![[0.0; 16]; bands];
+        for p in 0..ns {
+            for q in 0..ns {
+                let sign = parity(p, q);
+                for (k, x) in input.iter_mut().enumerate() {
+                    *x = if k <= size / 2 {
+                        half[k][p][q]
+                    } else {
+                        sign * half[size - k][p][q]
+                    };
+                }
+                fft.process(&mut input, &mut spectrum)
+                    .expect("buffers from the plan");
+                let scale = 2.0 * PI * mu_in / size as f64;
+                for (m, z) in spectrum.iter().enumerate() {
+                    // (1/2π)∫ f cos = Re X/P; (1/2π)∫ f sin = −Im X/P.
+                    let x = match (p < 2, q < 2) {
+                        (true, true) | (false, false) => z.re,
+                        (false, true) => -z.im,
+                        (true, false) => z.im,
+                    };
+                    coef[m][p * ns + q] = scale * x;
+                }
+            }
+        }
+        let top: f64 = coef[size / 4..]
+            .iter()
+            .flat_map(|c| c.iter())
+            .fold(0.0, |a, &x| a.max(x.abs()));
+        // In units of the cosine-weighted BRDF: |ρ^m| μ_out = 2π |F^m| μ_out μ_in.
+        let small = 2.0 * PI * AZIMUTH_TOLERANCE / mu_out;
+        if top <= small || size >= MAX_AZIMUTHS {
+            coef.truncate(size / 4);
+            while coef
+                .last()
+                .is_some_and(|c| c.iter().all(|x| x.abs() <= small))
+            {
+                coef.pop();
+            }
+            return coef;
+        }
+        let doubled = 2 * size;
+        half = (0..=size)
+            .map(|k| {
+                if k % 2 == 0 {
+                    half[k / 2]
+                } else {
+                    eval(k, doubled)
+                }
+            })
+            .collect();
+        size = doubled;
+    }
+}
+
+impl RoughProjection {
+    /// The projection of `surface` on `grid` (its ordinates split at
+    /// `split`, as the grid was built), `ns` Stokes components.
+    pub(super) fn new(surface: &RoughSurface, grid: &Grid, split: Option<f64>) -> Self {
+        Self::with_panels(surface, grid, split, 0.5 * surface.alpha.min(0.4))
+    }
+
+    /// [`RoughProjection::new`] with fine panels of width `panel_rad`.
+    pub(super) fn with_panels(
+        surface: &RoughSurface,
+        grid: &Grid,
+        split: Option<f64>,
+        panel_rad: f64,
+    ) -> Self {
+        let ns = grid.ns;
+        let (nq, nu) = (grid.mu_q.len(), grid.mu_u.len());
+        let parts = parts(&grid.mu_q, split, panel_rad);
+        // Rows: every fine node `(part, k)`, then every user direction.
+        let fine: Vec<(usize, usize)> = parts
+            .iter()
+            .enumerate()
+            .flat_map(|(p, part)| (0..part.mu.len()).map(move |k| (p, k)))
+            .collect();
+        let rows: Vec<Option<(usize, usize)>> = fine
+            .iter()
+            .copied()
+            .map(Some)
+            .chain(std::iter::repeat_n(None, nu))
+            .collect();
+        let empty = || -> [Vec<Series>; 4] {
+            [
+                vec![Series::new(); nq * nq],
+                vec![Series::new(); nq * nu],
+                vec![Series::new(); nu * nq],
+                vec![Series::new(); nu * nu],
+            ]
+        };
+        // One row: the series of every pair on it, projected into `acc`.
+        let row_into =
+            |acc: &mut [Vec<Series>; 4], planner: &mut RealFftPlanner<f64>, row: usize| {
+                let fine_row = rows[row];
+                let mu_out = match fine_row {
+                    Some((p, k)) => parts[p].mu[k],
+                    None => grid.mu_u[row - fine.len()],
+                };
+                let mut series = |mu_in: f64| pair_series(surface, mu_out, mu_in, ns, planner);
+                // Towards the ordinates: t_j = Σ_l ρ(μ_out, μ_l) v_l ℓ_j(μ_l).
+                let mut t = vec![Series::new(); nq];
+                for part in &parts {
+                    for (l, &mu_in) in part.mu.iter().enumerate() {
+                        let c = series(mu_in);
+                        for (j, &lj) in part.basis[l].iter().enumerate() {
+                            add_series(&mut t[part.first + j], part.v[l] * lj, &c);
+                        }
+                    }
+                }
+                let beams: Vec<Series> = grid.mu_u.iter().map(|&mu| series(mu)).collect();
+                let [r, rb, ru, ruu] = acc;
+                match fine_row {
+                    // From the fine node back to the ordinates:
+                    // v_k μ_k ℓ_i(μ_k) / (w_i μ_i) times the row.
+                    Some((p, k)) => {
+                        let part = &parts[p];
+                        for (i, &li) in part.basis[k].iter().enumerate() {
+                            let gi = part.first + i;
+                            let a = part.v[k] * part.mu[k] * li / (grid.w_q[gi] * grid.mu_q[gi]);
+                            for (j, tj) in t.iter().enumerate() {
+                                add_series(&mut r[gi * nq + j], a, tj);
+                            }
+                            for (v, b) in beams.iter().enumerate() {
+                                add_series(&mut rb[gi * nu + v], a, b);
+                            }
+                        }
+                    }
+                    None => {
+                        let u = row - fine.len();
+                        for (j, tj) in t.iter().enumerate() {
+                            add_series(&mut ru[u * nq + j], 1.0, tj);
+                        }
+                        for (v, b) in beams.iter().enumerate() {
+                            add_series(&mut ruu[u * nu + v], 1.0, b);
+                        }
+                    }
+                }
+            };
+        // One accumulator per thread, rows dealt round-robin: grazing rows
+        // cost the most.
+        let threads = rayon::current_num_threads().max(1);
+        let blocks = (0..threads)
+            .into_par_iter()
+            .map(|first| {
+                let mut acc = empty();
+                let mut planner = RealFftPlanner::<f64>::new();
+                for row in (first..rows.len()).step_by(threads) {
+                    row_into(&mut acc, &mut planner, row);
+                }
+                acc
+            })
+            .reduce(empty, |mut a, b| {
+                for (x, y) in a.iter_mut().zip(&b) {
+                    for (p, q) in x.iter_mut().zip(y) {
+                        add_series(p, 1.0, q);
+                    }
+                }
+                a
+            });
+        Self { ns, nq, nu, blocks }
+    }
+
+    /// Number of Fourier orders the base reflects into (0 for none).
+    pub(super) fn order_count(&self) -> usize {
+        self.blocks
+            .iter()
+            .flatten()
+            .map(Vec::len)
+            .max()
+            .unwrap_or(0)
+    }
+
+    /// The base's operators for order `m` (zero beyond
+    /// [`RoughProjection::order_count`]).
+    pub(super) fn ops(&self, m: usize) -> Ops {
+        let (ns, nq, nu) = (self.ns, self.nq, self.nu);
+        let mut o = Ops::reflector(nq * ns, nu * ns, ns);
+        let fill = |mat: &mut Mat<f64>, series: &[Series], cols: usize| {
+            for (idx, x) in series.iter().enumerate() {
+                let Some(c) = x.get(m) else { continue };
+                let (i, j) = (idx / cols, idx % cols);
+                for s in 0..ns {
+                    for t in 0..ns {
+                        mat[(i * ns + s, j * ns + t)] = c[s * ns + t];
+                    }
+                }
+            }
+        };
+        let [r, rb, ru, ruu] = &self.blocks;
+        fill(&mut o.r, r, nq);
+        fill(&mut o.rb, rb, nu);
+        fill(&mut o.ru, ru, nq);
+        fill(&mut o.ruu, ruu, nu);
+        o
+    }
+}

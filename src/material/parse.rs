@@ -356,7 +356,7 @@ mod tests {
         assert_eq!(e.path, "base");
         assert!(
             e.message.starts_with(
-                "exactly one of black, lambertian, fresnel (found lambertian and fresnel)"
+                "exactly one of black, lambertian, fresnel, rough_fresnel (found lambertian and fresnel)"
             ),
             "{e}"
         );

@@ -10,6 +10,7 @@ pub mod mie;
 pub mod plot;
 pub mod progress;
 pub mod render;
+pub mod report;
 pub mod scene;
 pub mod serve;
 pub mod solve;
@@ -67,6 +68,10 @@ enum Command {
     Plot(plot::PlotCommand),
     /// Polarized preview renderer (spheres with BRDF tables or material specs on a floor).
     Render(render::RenderArgs),
+    /// Reports that recompute published experiments (`report experiment`: the
+    /// seed's Table 1).
+    #[command(subcommand)]
+    Report(report::ReportCommand),
     /// Render scenes: what a scene needs of its materials (`scene plan`).
     #[command(subcommand)]
     Scene(scene::SceneCommand),
@@ -133,6 +138,7 @@ pub fn main() -> i32 {
         Command::Render(a) => render::run(&a),
         Command::Scene(c) => scene::run(&c),
         Command::Serve(a) => return serve::main(&a),
+        Command::Report(c) => return report::main(&c),
     };
     match result {
         Ok(v) => {

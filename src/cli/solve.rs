@@ -356,25 +356,7 @@ fn solve_direct(
                     "mueller": m,
                 }));
             }
-            // The delta term: a smooth top interface's reflection, or a
-            // mirror base's through the stack (never both: refused).
-            let delta = |mu: f64| -> Option<Mueller> {
-                let iv = set.index(mu);
-                if let Some(s) = refl.interface_specular(iv) {
-                    return Some(s);
-                }
-                let Base::Mirror { mueller } = &problem.base else {
-                    return None;
-                };
-                let e = refl.direct[iv];
-                let mut s = mueller(mu);
-                for row in &mut s {
-                    for x in row.iter_mut() {
-                        *x *= e * e;
-                    }
-                }
-                Some(s)
-            };
+            let delta = |mu: f64| delta_term(&refl, &problem.base, set.index(mu), mu);
             let mut seen: Vec<f64> = Vec::new();
             for p in points {
                 if seen.contains(&p.theta_i_deg) {
@@ -441,6 +423,32 @@ fn solve_direct(
         out.insert("solver".into(), solver_block);
     }
     Ok(out)
+}
+
+/// The delta term at user direction `iv` (cosine `mu`): a smooth top
+/// interface's reflection (with, over a mirror base, the base's beam back
+/// through it), or a mirror base's beam through the stack,
+/// `e^{−2τ/μ} M_F(μ)`; `None` for a base that reflects diffusely.
+pub fn delta_term(
+    refl: &solver::ReflectionFourier,
+    base: &Base,
+    iv: usize,
+    mu: f64,
+) -> Option<Mueller> {
+    if let Some(s) = refl.interface_specular(iv) {
+        return Some(s);
+    }
+    let Base::Mirror { mueller } = base else {
+        return None;
+    };
+    let e = refl.direct[iv];
+    let mut s = mueller(mu);
+    for row in &mut s {
+        for x in row.iter_mut() {
+            *x *= e * e;
+        }
+    }
+    Some(s)
 }
 
 /// The one-line human summary of a `solve` document (printed on stderr when

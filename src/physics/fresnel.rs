@@ -273,6 +273,21 @@ pub fn beam_transmission_mueller(n1: f64, n2: f64, mu: f64) -> Result<Mueller, P
     })
 }
 
+/// Power through the interface: the Stokes flux through a patch of the
+/// interface from the incident one, `(n2 μ_t / n1 μ) M(t)`; its unpolarized
+/// element is the transmittance `T = 1 − R` (the factor a microfacet
+/// transmission model puts on each facet). The zero matrix beyond the
+/// critical angle. Arguments as [`transmission`].
+pub fn power_transmission_mueller(n1: f64, n2: f64, mu: f64) -> Result<Mueller, PhysicsError> {
+    Ok(match transmission(n1, n2, mu)? {
+        Some(t) => scale(
+            real_jones_mueller(t.t_p, t.t_s),
+            n2 * t.mu_t / (n1 * mu.min(1.0)),
+        ),
+        None => [[0.0; 4]; 4],
+    })
+}
+
 /// Radiance across the interface: the Stokes radiance refracted into `μ_t`
 /// from the incident radiance along `μ`, `(n2/n1)³ (μ_t/μ) M(t)`: the beam
 /// map of [`beam_transmission_mueller`] divided by the solid-angle ratio
@@ -584,6 +599,25 @@ mod tests {
         let mu_c = (1.0 - 1.0 / 2.25f64).sqrt();
         assert!(transmission(1.5, 1.0, mu_c - 1e-9).unwrap().is_none());
         assert!(transmission(1.5, 1.0, mu_c + 1e-9).unwrap().is_some());
+    }
+
+    /// The power map is the beam map times `μ_t/μ`: reflected plus
+    /// transmitted power is the incident power, for every Stokes vector.
+    #[test]
+    fn power_transmission_is_the_flux_left_by_reflection() {
+        for (n1, n2) in [(1.0, 1.5), (1.5, 1.0), (1.33, 1.0)] {
+            for mu in [1.0, 0.6, 0.1] {
+                let r = mueller(n1, ri(n2, 0.0), mu).unwrap();
+                let t = power_transmission_mueller(n1, n2, mu).unwrap();
+                for j in 0..4 {
+                    let want = if j == 0 { 1.0 } else { 0.0 };
+                    assert!(
+                        (r[0][j] + t[0][j] - want).abs() < 1e-14,
+                        "{n1} {n2} {mu} {j}"
+                    );
+                }
+            }
+        }
     }
 
     /// Normal incidence `t = 2 n1/(n1 + n2)` for both polarizations; Brewster

@@ -152,6 +152,90 @@ impl RoughSurface {
     }
 }
 
+impl RoughSurface {
+    /// Height-correlated masking–shadowing of a ray that crosses the
+    /// surface, `G₂ = B(1 + Λ_i, 1 + Λ_o)` (Euler's beta function; Heitz
+    /// 2014, §6): a point at height-CDF value `C` is seen from above along
+    /// the incident ray with probability `C^Λ_i` and from below along the
+    /// transmitted one with `(1 − C)^Λ_o`; the mean over `C ∈ [0, 1]` is the
+    /// beta function (for two rays on the same side it is `1/(1 + Λ_i +
+    /// Λ_o)`, [`RoughSurface::shadowing`]).
+    pub fn crossing_shadowing(&self, mu_in: f64, mu_out: f64) -> f64 {
+        use super::psd::special::ln_gamma;
+        let (a, b) = (1.0 + self.lambda(mu_in), 1.0 + self.lambda(mu_out));
+        (ln_gamma(a) + ln_gamma(b) - ln_gamma(a + b)).exp()
+    }
+
+    /// The Mueller BTDF (1/sr, radiance per irradiance) of a rough
+    /// **dielectric** surface (`index` real) for a ray crossing it: going
+    /// down from the ambient medium along `mu_in` into the medium below
+    /// along `mu_out` (`downward`), or up from below along `mu_in` into the
+    /// ambient medium along `mu_out`, the transmitted ray at propagation
+    /// azimuth `dphi_prop` from the incident one, in their meridian frames
+    /// (conventions §5).
+    ///
+    /// Walter et al. (2007), eq. 21, with the facet's transmittance `1 − F`
+    /// replaced by its power transmission Mueller matrix
+    /// ([`fresnel::power_transmission_mueller`]) in the facet frames
+    /// (`y_f ∝ h × k_in` shared, `x = y_f × k`), as [`RoughSurface::mueller`]
+    /// does for reflection:
+    ///
+    /// ```text
+    /// f_t = |k_i·h| |k_t·h| / (μ_in μ_out) · η_o² D(h) G₂ / |η_i k_i − η_o k_t|² · L(σ_o) M_T L(σ_i)
+    /// h ∝ ±(η_i k_i − η_o k_t)  (toward the ambient medium),
+    /// ```
+    ///
+    /// zero unless both rays cross a facet from the incident side. As `α → 0` it
+    /// tends to the refracted delta of the smooth surface with its radiance
+    /// factor `(η_o/η_i)²` ([`fresnel::radiance_transmission_mueller`]).
+    pub fn transmission(&self, mu_out: f64, mu_in: f64, dphi_prop: f64, downward: bool) -> Mueller {
+        let (mu_in, mu_out) = (mu_in.clamp(MU_MIN, 1.0), mu_out.clamp(MU_MIN, 1.0));
+        let (eta_i, eta_o) = if downward {
+            (self.ambient, self.index.n)
+        } else {
+            (self.index.n, self.ambient)
+        };
+        let side = if downward { -1.0 } else { 1.0 };
+        let (k_in, th_in, ph_in) = meridian_frame(side * mu_in, 0.0);
+        let (k_t, th_t, _) = meridian_frame(side * mu_out, dphi_prop);
+        let v: V3 = [0, 1, 2].map(|c| eta_i * k_in[c] - eta_o * k_t[c]);
+        let zero = [[0.0; 4]; 4];
+        let Some(mut h) = unit(v) else {
+            return zero;
+        };
+        if h[2] < 0.0 {
+            h = h.map(|x| -x);
+        }
+        // Both rays cross the facet from the incident side: against its
+        // normal going down, along it going up.
+        let (ci, ct) = (dot(k_in, h), dot(k_t, h));
+        if ci * side <= 0.0 || ct * side <= 0.0 || h[2] <= 0.0 {
+            return zero;
+        }
+        let (ci, ct) = (ci.abs().min(1.0), ct.abs());
+        let facet = fresnel::power_transmission_mueller(eta_i, eta_o, ci)
+            .expect("real indices validated by RoughSurface::new, cosine in (0, 1]");
+        let scale = ci * ct / (mu_in * mu_out)
+            * eta_o
+            * eta_o
+            * self.distribution(h[2])
+            * self.crossing_shadowing(mu_in, mu_out)
+            / dot(v, v);
+        let y_f = unit(cross(h, k_in)).unwrap_or(ph_in);
+        let x_in = cross(y_f, k_in);
+        let x_t = cross(y_f, k_t);
+        let into_facet = rotation_cs(dot(x_in, th_in), dot(x_in, ph_in));
+        let out_of_facet = rotation_cs(dot(th_t, x_t), dot(th_t, y_f));
+        let mut m = mul(&out_of_facet, &mul(&facet, &into_facet));
+        for row in &mut m {
+            for x in row.iter_mut() {
+                *x *= scale;
+            }
+        }
+        m
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -311,6 +395,186 @@ mod tests {
                     (g1 * proj - mu_o).abs() < 1e-9,
                     "alpha {alpha} mu {mu_o}: {} vs {mu_o}",
                     g1 * proj
+                );
+            }
+        }
+    }
+
+    fn dielectrics() -> Vec<RoughSurface> {
+        vec![
+            RoughSurface::new(1.0, GLASS, 0.3).unwrap(),
+            RoughSurface::new(1.0, RefractiveIndex { n: 2.4, k: 0.0 }, 0.1).unwrap(),
+            RoughSurface::new(1.0, GLASS, 0.8).unwrap(),
+        ]
+    }
+
+    /// Refraction at one facet by Jones calculus on world-frame fields with
+    /// bases of its own (`s ∝ k_in × k_t`, `p = s × k`), the transmitted
+    /// field projected on the refracted ray's `e_ϑ`, `e_ϕ`, in both
+    /// directions of travel.
+    #[test]
+    fn transmission_matches_jones_calculus_on_world_fields() {
+        for s in dielectrics() {
+            for downward in [true, false] {
+                let (eta_i, eta_o) = if downward {
+                    (1.0, s.index.n)
+                } else {
+                    (s.index.n, 1.0)
+                };
+                let side = if downward { -1.0 } else { 1.0 };
+                let mut seen = 0;
+                for (mu_out, mu_in, d) in geometries() {
+                    let (k_in, th_in, ph_in) = meridian_frame(side * mu_in, 0.0);
+                    let (k_t, th_t, ph_t) = meridian_frame(side * mu_out, d);
+                    let got = s.transmission(mu_out, mu_in, d, downward);
+                    let v: V3 = [0, 1, 2].map(|c| eta_i * k_in[c] - eta_o * k_t[c]);
+                    let h = unit(v).unwrap();
+                    let h = if h[2] < 0.0 { h.map(|x| -x) } else { h };
+                    let (ci, ct) = (dot(k_in, h), dot(k_t, h));
+                    if ci * side <= 0.0 || ct * side <= 0.0 {
+                        assert!(got.iter().flatten().all(|&x| x == 0.0), "{got:?}");
+                        continue;
+                    }
+                    let Some(sv) = unit(cross(k_in, k_t)) else {
+                        continue;
+                    };
+                    let t = fresnel::transmission(eta_i, eta_o, ci.abs())
+                        .unwrap()
+                        .unwrap();
+                    let (p_in, p_t) = (cross(sv, k_in), cross(sv, k_t));
+                    let field = |e: V3| -> [C64; 2] {
+                        let (es, ep) = (dot(e, sv), dot(e, p_in));
+                        let f: Vec<f64> = (0..3)
+                            .map(|i| t.t_s * es * sv[i] + t.t_p * ep * p_t[i])
+                            .collect();
+                        let proj = |b: V3| C64::new(f[0] * b[0] + f[1] * b[1] + f[2] * b[2], 0.0);
+                        [proj(th_t), proj(ph_t)]
+                    };
+                    let (a, b) = (field(th_in), field(ph_in));
+                    let j: Jones = [[a[0], b[0]], [a[1], b[1]]];
+                    let power = eta_o * ct.abs() / (eta_i * ci.abs());
+                    let scale = ci.abs() * ct.abs() / (mu_in * mu_out)
+                        * eta_o
+                        * eta_o
+                        * s.distribution(h[2])
+                        * s.crossing_shadowing(mu_in, mu_out)
+                        / dot(v, v);
+                    let mut want = jones_to_mueller(&j);
+                    want.iter_mut().flatten().for_each(|x| *x *= power * scale);
+                    // 1e-10: far in the lobe's tail (1e-7 of its peak) the
+                    // two frame constructions round differently.
+                    assert!(
+                        close(&got, &want, 1e-10),
+                        "{s:?} {downward} {mu_out} {mu_in} {d}: {got:?} vs {want:?}"
+                    );
+                    seen += 1;
+                }
+                assert!(seen > 10, "{seen} geometries transmit");
+            }
+        }
+    }
+
+    /// Reciprocity across the surface with the `n²` law of radiance:
+    /// `f_down(μ, μ0, Δφ)/η_below² = Δ f_up(μ0, μ, −Δφ)ᵀ Δ/η_above²`.
+    #[test]
+    fn transmission_is_reciprocal_with_the_n_squared_law() {
+        let delta = [1.0, 1.0, -1.0, 1.0];
+        for s in dielectrics() {
+            let n2 = s.index.n * s.index.n;
+            for (mu_out, mu_in, d) in geometries() {
+                let f = s.transmission(mu_out, mu_in, d, true);
+                let g = s.transmission(mu_in, mu_out, -d, false);
+                let scale = f[0][0].abs().max(1e-300);
+                for p in 0..4 {
+                    for q in 0..4 {
+                        let r = delta[p] * g[q][p] * delta[q];
+                        assert!(
+                            (f[p][q] / n2 - r).abs() <= 1e-12 * scale,
+                            "{s:?} {mu_out} {mu_in} {d} {p}{q}: {} vs {r}",
+                            f[p][q] / n2
+                        );
+                    }
+                }
+            }
+        }
+    }
+
+    /// The transmitted power integrated over outgoing directions equals the
+    /// half-vector integral `∫ (|k_i·h|/μ_in) D(h) G₂ T(k_i·h) dω_h` (Walter
+    /// et al. 2007, eq. 17 turned around), and reflected plus transmitted
+    /// power is at most 1 (short of it by the model's lost multiple facet
+    /// bounces: 1 − 0.877 at α = 0.5, μ_in = 0.5 into glass).
+    #[test]
+    fn transmitted_power_matches_the_half_vector_integral() {
+        // Both integrands have kinks off the panel edges (where facets
+        // turn edge-on or to total internal reflection): 360 panels of
+        // 0.25° (measured out of the binder: the two integrals agree to
+        // 1.6e-4 at 90 panels, 2.5e-5 at 360, 4e-6 at 1440).
+        let np = 360;
+        for s in [
+            RoughSurface::new(1.0, GLASS, 0.5).unwrap(),
+            RoughSurface::new(1.5, RefractiveIndex { n: 1.0, k: 0.0 }, 0.4).unwrap(),
+        ] {
+            let (eta_i, eta_o) = (s.ambient, s.index.n);
+            for &mu_in in &[0.9, 0.5] {
+                // Over outgoing directions: θ on `np` panels × 8 nodes.
+                let (xp, wp) = gauss_legendre_on(np / 2 + 19, 0.0, PI);
+                let mut t_out = 0.0;
+                let mut r_out = 0.0;
+                for k in 0..np {
+                    let (lo, hi) = (
+                        k as f64 * PI / (2.0 * np as f64),
+                        (k + 1) as f64 * PI / (2.0 * np as f64),
+                    );
+                    let (xt, wt) = gauss_legendre_on(8, lo, hi);
+                    for (&th, &w) in xt.iter().zip(&wt) {
+                        let mu = th.cos();
+                        for (&ph, &v) in xp.iter().zip(&wp) {
+                            let dw = 2.0 * w * v * th.sin() * mu;
+                            t_out += dw * s.transmission(mu, mu_in, ph, true)[0][0];
+                            r_out += dw * s.mueller(mu, mu_in, ph)[0][0];
+                        }
+                    }
+                }
+                // Over facet normals facing the incident ray.
+                let (k_in, _, _) = meridian_frame(-mu_in, 0.0);
+                let mut t_half = 0.0;
+                for k in 0..np {
+                    let (lo, hi) = (
+                        k as f64 * PI / (2.0 * np as f64),
+                        (k + 1) as f64 * PI / (2.0 * np as f64),
+                    );
+                    let (xt, wt) = gauss_legendre_on(8, lo, hi);
+                    for (&th, &w) in xt.iter().zip(&wt) {
+                        let (xq, wq) = gauss_legendre_on(np + 38, 0.0, 2.0 * PI);
+                        for (&ph, &v) in xq.iter().zip(&wq) {
+                            let h = [th.sin() * ph.cos(), th.sin() * ph.sin(), th.cos()];
+                            let ci = -dot(k_in, h);
+                            if ci <= 0.0 {
+                                continue;
+                            }
+                            let Some(tr) = fresnel::transmission(eta_i, eta_o, ci).unwrap() else {
+                                continue;
+                            };
+                            // The refracted ray through that facet.
+                            let k_t: V3 = [0, 1, 2]
+                                .map(|c| (eta_i / eta_o) * (k_in[c] + ci * h[c]) - tr.mu_t * h[c]);
+                            if k_t[2] >= 0.0 {
+                                continue;
+                            }
+                            let g = s.crossing_shadowing(mu_in, -k_t[2]);
+                            let t = tr.transmittance(eta_i, eta_o, ci);
+                            t_half += w * v * th.sin() * ci / mu_in * s.distribution(h[2]) * g * t;
+                        }
+                    }
+                }
+                assert!(
+                    (t_out - t_half).abs() < 1e-4,
+                    "{s:?} {mu_in}: {t_out} vs {t_half}"
+                );
+                assert!(
+                    r_out + t_out <= 1.0 + 1e-4,
+                    "{s:?} {mu_in}: R {r_out} T {t_out}"
                 );
             }
         }

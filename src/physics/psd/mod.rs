@@ -467,7 +467,7 @@ fn out_of_range(name: &'static str, value: f64, range: String) -> PhysicsError {
 }
 
 mod integrator;
-mod special;
+pub(crate) mod special;
 #[cfg(test)]
 mod tests;
 

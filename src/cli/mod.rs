@@ -140,12 +140,17 @@ pub fn main() -> i32 {
         Command::Serve(a) => return serve::main(&a),
         Command::Report(c) => return report::main(&c),
     };
+    finish(result.map(|v| serde_json::to_string_pretty(&v).expect("JSON")))
+}
+
+/// Print a command's output (or its error, one line on stderr) and return
+/// the exit code: 0, 1 when stdout cannot be written, 2 for the error.
+pub(crate) fn finish(result: Result<String, String>) -> i32 {
     match result {
-        Ok(v) => {
+        Ok(text) => {
             // A closed pipe (`polbrdf … | head`) is not an error of ours.
             use std::io::Write;
-            let text = serde_json::to_string_pretty(&v).expect("JSON");
-            match writeln!(std::io::stdout().lock(), "{text}") {
+            match writeln!(std::io::stdout().lock(), "{}", text.trim_end()) {
                 Err(e) if e.kind() != std::io::ErrorKind::BrokenPipe => {
                     eprintln!("polbrdf: writing the output: {e}");
                     1

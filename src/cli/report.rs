@@ -323,27 +323,13 @@ pub fn text(doc: &Value) -> String {
 /// `polbrdf report ...`: print and return the exit code.
 pub fn main(c: &ReportCommand) -> i32 {
     let ReportCommand::Experiment(a) = c;
-    match run(a) {
-        Ok(doc) => {
-            let s = if a.json {
-                serde_json::to_string_pretty(&doc).expect("JSON")
-            } else {
-                text(&doc)
-            };
-            use std::io::Write;
-            match writeln!(std::io::stdout().lock(), "{}", s.trim_end()) {
-                Err(e) if e.kind() != std::io::ErrorKind::BrokenPipe => {
-                    eprintln!("polbrdf: writing the output: {e}");
-                    1
-                }
-                _ => 0,
-            }
+    super::finish(run(a).map(|doc| {
+        if a.json {
+            serde_json::to_string_pretty(&doc).expect("JSON")
+        } else {
+            text(&doc)
         }
-        Err(e) => {
-            eprintln!("polbrdf: {e}");
-            2
-        }
-    }
+    }))
 }
 
 #[cfg(test)]

@@ -128,7 +128,8 @@ impl StoredCorrection {
         mirror: Option<(f64, f64, RefractiveIndex)>,
         interface_index: Option<f64>,
     ) -> Self {
-        let top_interface = interface_index.map(|index| solver::TopInterface { index });
+        let top_interface =
+            interface_index.map(|index| solver::TopInterface { index, alpha: None });
         Self {
             correction: SingleScatterCorrection {
                 layers,

@@ -300,15 +300,27 @@ pub fn interface_index(spec: &Spec) -> Result<Option<HostSpec>, SpecError> {
     }
 }
 
-/// `top_interface`: its index (a host medium, [`interface_index`]); a
-/// rough interface (not solved yet) is refused by name.
+/// `top_interface`: its index (a host medium, [`interface_index`]); a rough
+/// one's `alpha` in [`ALPHA_MIN`], 1], then refused: it is solved but not
+/// yet served (docs/solver.md, "A rough top interface").
 fn validate_top_interface(spec: &Spec) -> Result<(), SpecError> {
     if let TopInterfaceSpec::Rough { alpha, .. } = &spec.top_interface {
+        finite_in(
+            "top_interface.rough.alpha",
+            *alpha,
+            ALPHA_MIN,
+            1.0,
+            "[0.05, 1] (a smoother surface is `smooth`)",
+        )?;
+        // Solved (solver::rough_interface) but not served: a table's grazing
+        // nodes need up to 2 048 azimuthal orders, ~47 s and ~5 GB for a
+        // 64-node table (docs/solver.md).
         return Err(SpecError::new(
             "top_interface.rough",
             format!(
-                "a rough top interface (alpha = {alpha}) is not supported yet; \
-                 \"none\" and {{\"smooth\": {{\"index\": …}}}} are"
+                "a rough top interface (alpha = {alpha}) is not supported yet: its tables \
+                 cost too much to serve (docs/solver.md); \"none\" and \
+                 {{\"smooth\": {{\"index\": …}}}} are"
             ),
         ));
     }

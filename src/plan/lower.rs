@@ -207,8 +207,9 @@ pub fn problem(spec: &Spec, wavelength_nm: Option<f64>) -> Result<Problem, SpecE
     })
 }
 
-/// A smooth `top_interface` at one wavelength: the real part of its binder
-/// index ([`crate::material::interface_index`]), which must be ≥ 1.
+/// The `top_interface` at one wavelength: the real part of its binder index
+/// ([`crate::material::interface_index`]), which must be ≥ 1, and a rough
+/// one's `alpha`.
 fn top_interface(
     spec: &Spec,
     wavelength_nm: Option<f64>,
@@ -216,7 +217,15 @@ fn top_interface(
     let Some(host) = crate::material::interface_index(spec)? else {
         return Ok(None);
     };
-    let path = "top_interface.smooth.index";
+    let alpha = match &spec.top_interface {
+        crate::material::TopInterfaceSpec::Rough { alpha, .. } => Some(*alpha),
+        _ => None,
+    };
+    let path = if alpha.is_some() {
+        "top_interface.rough.index"
+    } else {
+        "top_interface.smooth.index"
+    };
     let index = super::mie::host_real_index(path, &host, wavelength_nm.unwrap_or(f64::NAN))?;
     if !(index.is_finite() && index >= 1.0) {
         let at = wavelength_nm.map_or(String::new(), |w| format!(" at {w} nm"));
@@ -225,7 +234,7 @@ fn top_interface(
             format!("the real part {index}{at} is below 1 (a binder under air has n ≥ 1)"),
         ));
     }
-    Ok(Some(solver::TopInterface { index }))
+    Ok(Some(solver::TopInterface { index, alpha }))
 }
 
 /// The share of a `solver.tolerance` the Fourier azimuth series may leave
@@ -254,6 +263,13 @@ pub fn settings(spec: &Spec) -> Settings {
         secondary_scattering: spec.solver.secondary_scattering,
         max_order: spec.needs.max_order(),
         fourier_tolerance,
+        // No beam crosses a rough interface, so there is no direct beam for
+        // delta-M's truncated peak to travel with: solved untruncated
+        // (docs/solver.md, "A rough top interface").
+        delta_m: !matches!(
+            spec.top_interface,
+            crate::material::TopInterfaceSpec::Rough { .. }
+        ),
         ..default
     }
 }

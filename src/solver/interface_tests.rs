@@ -22,7 +22,7 @@ fn under(
     index: Option<f64>,
 ) -> Problem {
     Problem {
-        top_interface: index.map(|index| TopInterface { index }),
+        top_interface: index.map(|index| TopInterface { index, alpha: None }),
         ..super::law_tests::problem(tau, albedo, coef, base, streams)
     }
 }

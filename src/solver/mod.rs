@@ -37,6 +37,9 @@ mod result;
 mod rough_base;
 #[cfg(test)]
 mod rough_base_tests;
+mod rough_interface;
+#[cfg(test)]
+mod rough_interface_tests;
 pub mod secondary;
 #[cfg(test)]
 mod symmetry_tests;
@@ -99,8 +102,8 @@ pub fn reflection_observed(
     // into the binder (`interface`); the response is mapped back to air.
     let tau_total: f64 = original.layers.iter().map(|l| l.thickness.value()).sum();
     let mut maps = match &problem.top_interface {
-        Some(i) => Some(interface::InterfaceMaps::new(i.index, mu_user)?),
-        None => None,
+        Some(i) if i.alpha.is_none() => Some(interface::InterfaceMaps::new(i.index, mu_user)?),
+        _ => None,
     };
     // Over a mirror base the beam bounces between base and interface: the
     // delta term's part through the interface (with the true direct
@@ -125,8 +128,20 @@ pub fn reflection_observed(
         quadrature_split(problem),
     );
     let rq = match &problem.top_interface {
-        Some(i) => Some(interface::internal_reflection(i.index, &grid.mu_q, ns)?),
-        None => None,
+        Some(i) if i.alpha.is_none() => {
+            Some(interface::internal_reflection(i.index, &grid.mu_q, ns)?)
+        }
+        _ => None,
+    };
+    // A rough interface: user cosines in air, quadrature in the binder.
+    let rough_top = match &problem.top_interface {
+        Some(TopInterface {
+            index,
+            alpha: Some(alpha),
+        }) => Some(rough_interface::RoughInterface::new(
+            *index, *alpha, &grid, grid.split,
+        )?),
+        _ => None,
     };
     let (semi_infinite, full) = base_coupling(problem);
     let rough = match &problem.base {
@@ -137,7 +152,9 @@ pub fn reflection_observed(
     };
     let orders = capped_orders(
         problem,
-        layer_orders(problem).max(rough.as_ref().map_or(0, |r| r.order_count())),
+        layer_orders(problem)
+            .max(rough.as_ref().map_or(0, |r| r.order_count()))
+            .max(rough_top.as_ref().map_or(0, |r| r.order_count())),
     );
     let one_order = |m: usize| -> Mat<f64> {
         let stack = stack_ops(problem, &grid, m, full);
@@ -157,6 +174,9 @@ pub fn reflection_observed(
                 TopResponse::of(add(&stack, &base, false))
             }
         };
+        if let Some(rough_top) = &rough_top {
+            return rough_top.over(m, &top.r);
+        }
         match (&maps, &rq) {
             (Some(maps), Some(rq)) => {
                 let mut l = interface::under_interface(&top, rq);

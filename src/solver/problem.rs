@@ -118,15 +118,19 @@ impl Default for Settings {
     }
 }
 
-/// A smooth dielectric interface above the layers: the layers lie in a
-/// binder of real index `index ≥ 1` under air (index 1). Light enters and
-/// leaves the stack through it by Fresnel refraction, and light scattered
-/// up is partly (beyond the critical angle, totally) reflected back down
-/// ([`interface`](super::interface)).
+/// A dielectric interface above the layers: the layers lie in a binder of
+/// real index `index ≥ 1` under air (index 1). Smooth (`alpha: None`), light
+/// enters and leaves the stack through it by Fresnel refraction, and light
+/// scattered up is partly (beyond the critical angle, totally) reflected
+/// back down ([`interface`](super::interface)); rough, its GGX facets do
+/// the same in a lobe of width `~alpha`
+/// ([`rough_interface`](super::rough_interface)).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TopInterface {
     /// Refractive index of the binder (real; air above has index 1).
     pub index: f64,
+    /// GGX roughness of a rough interface; `None` for a smooth one.
+    pub alpha: Option<f64>,
 }
 
 /// A problem: layers top to bottom on a base, under an optional interface.

@@ -85,6 +85,29 @@ pub(super) fn validate(problem: &Problem, mu_user: &[f64]) -> Result<(), SolverE
             i.index
         )));
     }
+    if let Some(TopInterface {
+        alpha: Some(alpha), ..
+    }) = &problem.top_interface
+    {
+        if !(alpha.is_finite() && *alpha > 0.0 && *alpha <= 10.0) {
+            return Err(SolverError::Invalid(format!(
+                "top_interface.alpha = {alpha} must be in (0, 10]"
+            )));
+        }
+        // No beam crosses a rough interface: the corrections that follow
+        // the direct beam (delta-M's single scattering, the mirror base's
+        // delta term) have nothing to act on (docs/solver.md).
+        if s.delta_m {
+            return Err(SolverError::Invalid(
+                "delta-M truncation under a rough top interface is not supported yet".into(),
+            ));
+        }
+        if matches!(problem.base, Base::Mirror { .. }) {
+            return Err(SolverError::Invalid(
+                "a mirror base under a rough top interface is not supported yet".into(),
+            ));
+        }
+    }
     for &mu in mu_user {
         if !(mu > 0.0 && mu <= 1.0) {
             return Err(SolverError::Invalid(format!(

@@ -1,0 +1,98 @@
+//! A rough (GGX) binder/air interface on top of the stack
+//! (docs/solver.md, "A rough top interface"): the layers lie in a binder of
+//! real index `n` under air, and the surface between them is rough.
+//!
+//! Unlike the smooth interface ([`super::interface`]) nothing crosses it as
+//! a beam: the incident beam is spread by the facets into a lobe of width
+//! `~α` inside the binder, and what leaves comes from every internal
+//! direction. Per Fourier order the interface has four operators, each
+//! projected on the solver's grid exactly as a rough base is
+//! ([`super::rough_base`]; the user cosines are those in air, the
+//! quadrature is the binder's):
+//!
+//! - `R_t` (user ← beam): reflection from above,
+//!   `RoughSurface { ambient: 1, index: n }` ([`RoughSurface::mueller`]);
+//! - `T_d` (quadrature ← beam): transmission air → binder
+//!   ([`RoughSurface::transmission`], downward);
+//! - `T_u` (user ← quadrature): transmission binder → air (upward);
+//! - `R_b` (quadrature ← quadrature): reflection from below, total internal
+//!   reflection included. It is the reflection of `RoughSurface { ambient:
+//!   n, index: 1 }` mirrored in `z`: the mirror maps each meridian frame
+//!   `(e_ϑ, e_ϕ)` to `(−e_ϑ, e_ϕ)`, so `R_b(Δφ) = D R(Δφ) D = R(−Δφ)`,
+//!   `D = diag(1, 1, −1, −1)`.
+//!
+//! With the stack's reflection `r` seen from inside the binder (quadrature
+//! up ← quadrature down), the radiance going up under the interface is
+//! `U = (I − r R_b)^{-1} r T_d` and the reflection in air is
+//! `ρ = R_t + T_u U`: one linear solve per order, the cost of one more
+//! layer plus the projection.
+
+use super::layer::{Ops, identity_minus_product, mm, refined_solve};
+use super::orders::Grid;
+use super::rough_base::{Kernels, RoughProjection, panel_width};
+use crate::physics::RefractiveIndex;
+use crate::physics::microfacet::RoughSurface;
+use faer::Mat;
+
+/// The projected operators of a rough interface of binder index `index`
+/// and roughness `alpha` (`R_t` in `ruu`, `T_d` in `rb`, `T_u` in `ru`,
+/// `R_b` in `r` of each order's [`Ops`]).
+pub(super) struct RoughInterface {
+    projection: RoughProjection,
+}
+
+impl RoughInterface {
+    /// Project the interface on `grid` (binder quadrature split at
+    /// `split`, user cosines in air).
+    pub(super) fn new(
+        index: f64,
+        alpha: f64,
+        grid: &Grid,
+        split: Option<f64>,
+    ) -> Result<Self, super::SolverError> {
+        let invalid = |e: crate::physics::PhysicsError| {
+            super::SolverError::Invalid(format!("top_interface: {e}"))
+        };
+        let binder = RefractiveIndex { n: index, k: 0.0 };
+        let air = RefractiveIndex { n: 1.0, k: 0.0 };
+        let above = RoughSurface::new(1.0, binder, alpha).map_err(invalid)?;
+        let below = RoughSurface::new(index, air, alpha).map_err(invalid)?;
+        let r_b = |mu_out: f64, mu_in: f64, d: f64| below.mueller(mu_out, mu_in, -d);
+        let t_d = |mu_out: f64, mu_in: f64, d: f64| above.transmission(mu_out, mu_in, d, true);
+        let t_u = |mu_out: f64, mu_in: f64, d: f64| above.transmission(mu_out, mu_in, d, false);
+        let r_t = |mu_out: f64, mu_in: f64, d: f64| above.mueller(mu_out, mu_in, d);
+        let kernels = Kernels {
+            r: &r_b,
+            rb: &t_d,
+            ru: &t_u,
+            ruu: &r_t,
+        };
+        Ok(Self {
+            projection: RoughProjection::of_kernels(&kernels, grid, split, panel_width(alpha)),
+        })
+    }
+
+    /// Fourier orders the interface reaches.
+    pub(super) fn order_count(&self) -> usize {
+        self.projection.order_count()
+    }
+
+    /// The reflection in air of order `m` over a stack whose reflection
+    /// seen from inside the binder is `r`: `R_t + T_u (I − r R_b)^{-1} r T_d`.
+    pub(super) fn over(&self, m: usize, r: &Mat<f64>) -> Mat<f64> {
+        let Ops {
+            r: r_b,
+            rb: t_d,
+            ru: t_u,
+            ruu: r_t,
+            ..
+        } = self.projection.ops(m);
+        let g = identity_minus_product(r.as_ref(), r_b.as_ref());
+        let lu = g.partial_piv_lu();
+        let src = mm(r.as_ref(), t_d.as_ref());
+        let up = refined_solve(&g, &lu, &src);
+        let mut out = r_t;
+        out += mm(t_u.as_ref(), up.as_ref());
+        out
+    }
+}

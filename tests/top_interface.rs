@@ -261,12 +261,6 @@ fn inconsistent_or_unsupported_interfaces_are_refused_by_name() {
         "top_interface": {"rough": {"index": 1.5, "alpha": 0.01}}}));
     assert!(err.contains("top_interface.rough.alpha"), "{err}");
     let err = refusal(&json!({"layers": [mie(1.5)], "wavelengths_nm": [550],
-        "top_interface": {"rough": {"index": 1.5, "alpha": 0.1}}}));
-    assert!(
-        err.contains("top_interface.rough") && err.contains("not supported yet"),
-        "{err}"
-    );
-    let err = refusal(&json!({"layers": [mie(1.5)], "wavelengths_nm": [550],
         "top_interface": {"smooth": {"index": 1.5}, "rough": {"alpha": 0.1}}}));
     assert!(err.contains("exactly one of none, smooth, rough"), "{err}");
     let err = refusal(&json!({"layers": [mie(1.5)], "wavelengths_nm": [550],

@@ -189,6 +189,7 @@ pub fn build_wavelength(
         specular,
         wall_time_ms: t0.elapsed().as_secs_f64() * 1e3,
         correction,
+        surface: refl.surface,
     };
     // Measured on f11 alone, from an f11 block on every incident node (the
     // statement covers the grid, whatever part of it is stored).

@@ -194,6 +194,7 @@ fn cut(b: &WavelengthTable, s: &Shape) -> WavelengthTable {
         f,
         specular,
         correction: b.correction.clone(),
+        surface: b.surface,
         ..b.clone_shape()
     }
 }
@@ -269,6 +270,7 @@ fn resample(
             f,
             specular,
             correction: b.correction.clone(),
+            surface: b.surface,
             ..b.clone_shape()
         },
         measured,

@@ -1,10 +1,10 @@
-//! The binary table file, version 5 (docs/table-format.md, the normative
+//! The binary table file, version 6 (docs/table-format.md, the normative
 //! description). Little-endian throughout.
 //!
 //! ```text
 //! header (56 bytes)
 //!   0  8  magic  b"PBRDFTAB"
-//!   8  4  u32    format version (5; version 4 files are read too)
+//!   8  4  u32    format version (6; versions 4 and 5 are read too)
 //!  12  4  u32    data type of the coefficients: 1 = f32, 2 = f64
 //!  16  8  u64    payload length in bytes (everything after the header)
 //!  24 32  SHA-256 of header bytes 0..24 followed by the payload
@@ -13,7 +13,7 @@
 //!   u32 W (wavelengths), u32 N (polar nodes), u32 ns (1 or 4), u32 flags
 //!       (bit 0: specular matrices present; bit 1: correction records;
 //!        bit 2: column 0 only, C = 1 (else C = ns); bit 3: incident
-//!        nodes listed)
+//!        nodes listed; bit 4: rough surface records, version 6)
 //!   f64[N] θ nodes (deg), f64[N] μ nodes, f64[W] wavelengths (nm; NaN: none)
 //!   u32[W] M_w (Fourier orders per wavelength)
 //!   if flag bit 3: u32 K, u32[K] the grid nodes held on the incident axis
@@ -22,6 +22,7 @@
 //!                     then, if flag bit 0: data[K (in)][R][R]  specular S,
 //!                     R = 4 (R × R = ns × C with bit 2)
 //!                     then, if flag bit 1: a correction record (below)
+//!                     then, if flag bit 4: a surface record (below)
 //! correction record (always f64; the single-scattering correction T3)
 //!   u32 present (0/1); if 1:
 //!   u32 polarized (0/1), u32 K (layers), u32 streams of the solve,
@@ -31,6 +32,8 @@
 //!     removed forward fractions (f, f₂₃, f₂₃, f₄), then the
 //!     full and the truncated expansion, each as six series
 //!     (β, α, ζ, δ, γ, ε), each a u32 length and that many f64
+//! surface record (always f64; a rough top interface's own reflection T4)
+//!   u32 present (0/1); if 1: f64 ambient index, f64 n, f64 k, f64 alpha
 //! ```
 //!
 //! Readers reject a short file, a bad magic, an unknown version or data
@@ -44,6 +47,7 @@ use crate::digest::{self, hex};
 use crate::material::needs::StokesNeed;
 use crate::physics::RefractiveIndex;
 use crate::physics::expansion::GreekCoefficients;
+use crate::physics::microfacet::RoughSurface;
 use crate::physics::stokes::Mueller;
 use crate::solver::truncation::CorrectionLayer;
 
@@ -52,23 +56,23 @@ pub const MAGIC: [u8; 8] = *b"PBRDFTAB";
 
 /// The format version this build writes; it reads it and
 /// [`OLDEST_READ_VERSION`] onwards.
-pub const VERSION: u32 = 5;
+pub const VERSION: u32 = 6;
 
 /// The version a table is written in: the oldest that holds it, so that
 /// tables without a top interface keep the bytes (and stored rows their
-/// media type) of every version-4 writer: 5 when a correction record
-/// carries an interface index, else 4.
+/// media type) of every version-4 writer: 6 when it carries a rough
+/// surface record, 5 when a correction record carries an interface index,
+/// else 4.
 pub fn version_of(table: &Table) -> u32 {
+    if table.wavelengths.iter().any(|w| w.surface.is_some()) {
+        return VERSION;
+    }
     let interface = table.wavelengths.iter().any(|w| {
         w.correction
             .as_ref()
             .is_some_and(|c| c.interface_index.is_some())
     });
-    if interface {
-        VERSION
-    } else {
-        OLDEST_READ_VERSION
-    }
+    if interface { 5 } else { OLDEST_READ_VERSION }
 }
 
 /// The oldest format version this build reads: version 4 lacks the
@@ -122,6 +126,7 @@ pub fn to_bytes(table: &Table, dtype: DataType) -> Result<Vec<u8>, BrdfError> {
     let incident: Vec<usize> = first.map_or_else(|| (0..n).collect(), |w| w.incident.clone());
     let has_spec = table.wavelengths.iter().any(|w| w.specular.is_some());
     let has_corr = table.wavelengths.iter().any(|w| w.correction.is_some());
+    let has_surface = table.wavelengths.iter().any(|w| w.surface.is_some());
     for w in &table.wavelengths {
         if w.ns != ns
             || w.cols != cols
@@ -155,7 +160,8 @@ pub fn to_bytes(table: &Table, dtype: DataType) -> Result<Vec<u8>, BrdfError> {
         u32::from(has_spec)
             | (u32::from(has_corr) << 1)
             | (u32::from(column_only) << 2)
-            | (u32::from(listed) << 3),
+            | (u32::from(listed) << 3)
+            | (u32::from(has_surface) << 4),
     ] {
         p.extend_from_slice(&x.to_le_bytes());
     }
@@ -194,6 +200,9 @@ pub fn to_bytes(table: &Table, dtype: DataType) -> Result<Vec<u8>, BrdfError> {
         if has_corr {
             put_correction(&mut p, w.correction.as_ref(), version_of(table));
         }
+        if has_surface {
+            put_surface(&mut p, w.surface.as_ref());
+        }
     }
     let mut out = Vec::with_capacity(HEADER_LEN + p.len());
     out.extend_from_slice(&MAGIC);
@@ -204,6 +213,32 @@ pub fn to_bytes(table: &Table, dtype: DataType) -> Result<Vec<u8>, BrdfError> {
     out.extend_from_slice(&sha);
     out.extend_from_slice(&p);
     Ok(out)
+}
+
+/// The surface record of one wavelength (module doc).
+fn put_surface(p: &mut Vec<u8>, s: Option<&RoughSurface>) {
+    let Some(s) = s else {
+        p.extend_from_slice(&0u32.to_le_bytes());
+        return;
+    };
+    p.extend_from_slice(&1u32.to_le_bytes());
+    for x in [s.ambient, s.index.n, s.index.k, s.alpha] {
+        p.extend_from_slice(&x.to_le_bytes());
+    }
+}
+
+/// Read a surface record (module doc), checked as a spec's would be.
+fn get_surface(c: &mut Cursor) -> Result<Option<RoughSurface>, BrdfError> {
+    match c.u32("surface flag")? {
+        0 => return Ok(None),
+        1 => {}
+        f => return Err(fmt_err(format!("malformed table: surface flag {f}"))),
+    }
+    let v = c.f64s(4, "surface record")?;
+    let index = RefractiveIndex { n: v[1], k: v[2] };
+    RoughSurface::new(v[0], index, v[3])
+        .map(Some)
+        .map_err(|e| fmt_err(format!("malformed table: surface record: {e}")))
 }
 
 /// The correction record of one wavelength (module doc).
@@ -479,7 +514,7 @@ pub fn from_bytes(b: &[u8]) -> Result<Table, BrdfError> {
     if ns != 1 && ns != 4 {
         return Err(fmt_err(format!("malformed table: {ns} Stokes components")));
     }
-    if flags > 15 {
+    if flags > 31 || (flags & 16 == 16 && version < 6) {
         return Err(fmt_err(format!(
             "malformed table: unknown flags {flags:#x}"
         )));
@@ -567,6 +602,11 @@ pub fn from_bytes(b: &[u8]) -> Result<Table, BrdfError> {
         } else {
             None
         };
+        let surface = if flags & 16 == 16 {
+            get_surface(&mut c)?
+        } else {
+            None
+        };
         blocks.push(WavelengthTable {
             wavelength_nm: if wl[k].is_nan() { None } else { Some(wl[k]) },
             ns,
@@ -578,6 +618,7 @@ pub fn from_bytes(b: &[u8]) -> Result<Table, BrdfError> {
             specular,
             wall_time_ms: meta.wavelengths[k].wall_time_ms,
             correction,
+            surface,
         });
     }
     if c.at != payload.len() {
@@ -735,12 +776,63 @@ mod tests {
         assert!(from_bytes(&as_v4).is_err());
     }
 
+    /// A table under a rough top interface carries the surface's own
+    /// reflection as a record (T4): version 6, read back equal, evaluated to
+    /// the same BRDF (its gloss lobe, not in the coefficients); the same
+    /// bytes labelled version 5 are refused.
+    #[test]
+    fn surface_records_round_trip_in_version_6() {
+        let text = r#"{"layers": [{"optical_thickness": 0.5,
+             "scatterer": {"rayleigh": {"albedo": 0.9}}}],
+             "top_interface": {"rough": {"index": 1.5, "alpha": 0.3}},
+             "solver": {"streams": 4}}"#;
+        let spec = crate::material::parse(text).unwrap();
+        let t = Table::from_spec(&spec, PolarGrid::graded(6).unwrap()).unwrap();
+        let s = t.wavelengths[0].surface.expect("a rough interface");
+        assert_eq!(
+            (s.ambient, s.index.n, s.index.k, s.alpha),
+            (1.0, 1.5, 0.0, 0.3)
+        );
+        let bytes = to_bytes(&t, DataType::F32).unwrap();
+        assert_eq!(u32::from_le_bytes(bytes[8..12].try_into().unwrap()), 6);
+        let back = from_bytes(&bytes).unwrap();
+        assert_eq!(back.wavelengths[0].surface, Some(s));
+        let (mut fa, mut fb) = ([[0.0; 4]; 4], [[0.0; 4]; 4]);
+        t.wavelengths[0].complete(&mut fa, 40.0, 40.0, 0.0);
+        back.wavelengths[0].complete(&mut fb, 40.0, 40.0, 0.0);
+        assert_eq!(fa, fb);
+        // At the mirror pair the lobe alone, D F G / (4 μ μ) with the GGX
+        // D(h = n) = 1/(π α²) and F the unpolarized Fresnel reflectance.
+        let mu: f64 = 40f64.to_radians().cos();
+        let cos_t = (1.0 - (40f64.to_radians().sin() / 1.5).powi(2)).sqrt();
+        let rs = (mu - 1.5 * cos_t) / (mu + 1.5 * cos_t);
+        let rp = (1.5 * mu - cos_t) / (1.5 * mu + cos_t);
+        let lambda = |m: f64| (-1.0 + (1.0 + 0.09 * (1.0 - m * m) / (m * m)).sqrt()) / 2.0;
+        let g = 1.0 / (1.0 + 2.0 * lambda(mu));
+        let d = 1.0 / (std::f64::consts::PI * 0.09);
+        let want = d * g * 0.5 * (rs * rs + rp * rp) / (4.0 * mu * mu);
+        assert!(
+            (fa[0][0] - want).abs() < 1e-12 * want,
+            "{} vs {want}",
+            fa[0][0]
+        );
+        let mut as_v5 = bytes.clone();
+        as_v5[8..12].copy_from_slice(&5u32.to_le_bytes());
+        let sha = checksum(&as_v5[..24], &as_v5[HEADER_LEN..]);
+        as_v5[24..56].copy_from_slice(&sha);
+        assert!(
+            message(&as_v5).contains("unknown flags"),
+            "{}",
+            message(&as_v5)
+        );
+    }
+
     #[test]
     fn header_layout_is_as_documented() {
         let b = to_bytes(&small_table(false), DataType::F32).unwrap();
         assert_eq!(&b[..8], b"PBRDFTAB");
         assert_eq!(u32::from_le_bytes(b[8..12].try_into().unwrap()), 4);
-        assert_eq!((OLDEST_READ_VERSION, VERSION), (4, 5));
+        assert_eq!((OLDEST_READ_VERSION, VERSION), (4, 6));
         assert_eq!(u32::from_le_bytes(b[12..16].try_into().unwrap()), 1);
         let len = u64::from_le_bytes(b[16..24].try_into().unwrap()) as usize;
         assert_eq!(len, b.len() - HEADER_LEN);

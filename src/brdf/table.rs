@@ -34,6 +34,7 @@ pub use super::metadata::{Directions, EstimateMeta, Metadata, SolverMeta, Wavele
 use crate::material::Spec;
 use crate::material::needs::StokesNeed;
 use crate::physics::RefractiveIndex;
+use crate::physics::microfacet::RoughSurface;
 use crate::physics::stokes::{Mueller, mul, rotation};
 use crate::plan::{self, Plan};
 use crate::solver::truncation::{CorrectionLayer, SingleScatterCorrection};
@@ -88,6 +89,10 @@ pub struct WavelengthTable {
     /// truncated solve (`solver::truncation`), evaluated in closed form at
     /// every query direction (T3); `None` when no layer was truncated.
     pub correction: Option<StoredCorrection>,
+    /// A rough top interface's own reflection (its gloss lobe), evaluated
+    /// in closed form at every query direction (T4) and not in `f`
+    /// (`solver::rough_interface`); `None` without one.
+    pub surface: Option<RoughSurface>,
 }
 
 /// The single-scattering correction a table carries: the solver's
@@ -249,6 +254,7 @@ impl WavelengthTable {
             f: Vec::new(),
             specular: None,
             correction: None,
+            surface: None,
             incident: self.incident.clone(),
             ..*self
         }
@@ -351,23 +357,26 @@ impl WavelengthTable {
         f
     }
 
-    /// Add the stored single-scattering correction (T3), if any, at the
-    /// exact directions (it carries the forward peak that no Fourier
+    /// Add the stored single-scattering correction (T3) and a rough top
+    /// interface's own reflection (T4), if any, at the exact directions
+    /// (they carry the forward peak and the gloss lobe that no Fourier
     /// series of the table's length could), then make the matrix
     /// realizable (`solver::make_realizable`: the interpolation, like a
     /// coarse solve, need not be).
     pub fn complete(&self, f: &mut Mueller, theta_i_deg: f64, theta_o_deg: f64, dphi_prop: f64) {
-        if let Some(c) = &self.correction {
-            let d = c.brdf(
-                mu_of_theta_deg(theta_o_deg),
-                mu_of_theta_deg(theta_i_deg),
-                dphi_prop,
-            );
-            for (row, drow) in f.iter_mut().zip(&d).take(self.ns) {
+        let (mu_o, mu_i) = (mu_of_theta_deg(theta_o_deg), mu_of_theta_deg(theta_i_deg));
+        let mut add = |d: &Mueller| {
+            for (row, drow) in f.iter_mut().zip(d).take(self.ns) {
                 for (x, y) in row.iter_mut().zip(drow).take(self.cols) {
                     *x += y;
                 }
             }
+        };
+        if let Some(c) = &self.correction {
+            add(&c.brdf(mu_o, mu_i, dphi_prop));
+        }
+        if let Some(s) = &self.surface {
+            add(&s.mueller(mu_o, mu_i, dphi_prop));
         }
         // Cloude filtering needs all 16 elements: a block of fewer
         // (`needs.stokes`) is returned as interpolated.

@@ -263,6 +263,9 @@ fn table_f11(problem: &Problem) -> Result<Vec<f64>, String> {
                     if let Some(c) = &refl.correction {
                         f11 += c.brdf(set.mu[iu], set.mu[iv], d)[0][0];
                     }
+                    if let Some(s) = &refl.surface {
+                        f11 += s.mueller(set.mu[iu], set.mu[iv], d)[0][0];
+                    }
                     row.push(f11);
                 }
             }

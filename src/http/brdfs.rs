@@ -878,7 +878,7 @@ fn dense_bytes(
         TableQuery,
     ),
     responses(
-        (status = 200, description = "The BRDF table (docs/table-format.md), Content-Type application/vnd.polbrdf.table; version=4 (version=5 for a table under a top_interface); or with format=npy (application/x-npy) or format=json (application/json) a dense export; or with format=mitsuba a Mitsuba 3 measured_polarized tensor file (docs/mitsuba.md), application/octet-stream",
+        (status = 200, description = "The BRDF table (docs/table-format.md), Content-Type application/vnd.polbrdf.table; version=4 (version=5 for a table under a smooth top_interface, version=6 under a rough one); or with format=npy (application/x-npy) or format=json (application/json) a dense export; or with format=mitsuba a Mitsuba 3 measured_polarized tensor file (docs/mitsuba.md), application/octet-stream",
          content(
              (TableBytes = "application/vnd.polbrdf.table; version=4"),
              (TableBytes = "application/x-npy"),

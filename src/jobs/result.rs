@@ -27,6 +27,10 @@ pub const MEDIA_TYPE: &str = "application/vnd.polbrdf.table; version=4";
 /// top interface whose correction records carry its index).
 pub const MEDIA_TYPE_V5: &str = "application/vnd.polbrdf.table; version=5";
 
+/// Media type of stored bytes in table format version 6 (a table under a
+/// rough top interface, with its surface records).
+pub const MEDIA_TYPE_V6: &str = "application/vnd.polbrdf.table; version=6";
+
 /// The media type of table bytes, by the format version in their header.
 pub fn media_type_of(bytes: &[u8]) -> &'static str {
     match bytes
@@ -34,15 +38,16 @@ pub fn media_type_of(bytes: &[u8]) -> &'static str {
         .map(|b| u32::from_le_bytes(b.try_into().unwrap()))
     {
         Some(5) => MEDIA_TYPE_V5,
+        Some(6) => MEDIA_TYPE_V6,
         _ => MEDIA_TYPE,
     }
 }
 
 /// Whether a row's media type is one this build reads and writes
-/// (versions 4 and 5): a row stored in another version is stale and is
+/// (versions 4 to 6): a row stored in another version is stale and is
 /// solved again on its next request (`Jobs::result_bytes`).
 pub fn is_current_media_type(media_type: Option<&str>) -> bool {
-    matches!(media_type, Some(MEDIA_TYPE | MEDIA_TYPE_V5))
+    matches!(media_type, Some(MEDIA_TYPE | MEDIA_TYPE_V5 | MEDIA_TYPE_V6))
 }
 
 #[cfg(test)]
@@ -50,11 +55,14 @@ pub fn is_current_media_type(media_type: Option<&str>) -> bool {
 fn media_types_name_the_format_versions() {
     use crate::brdf::format::{OLDEST_READ_VERSION, VERSION};
     assert!(MEDIA_TYPE.ends_with(&format!("; version={OLDEST_READ_VERSION}")));
-    assert!(MEDIA_TYPE_V5.ends_with(&format!("; version={VERSION}")));
-    let mut header = b"PBRDFTAB".to_vec();
-    header.extend_from_slice(&5u32.to_le_bytes());
-    assert_eq!(media_type_of(&header), MEDIA_TYPE_V5);
-    assert!(is_current_media_type(Some(media_type_of(&header))));
+    assert!(MEDIA_TYPE_V5.ends_with("; version=5"));
+    assert!(MEDIA_TYPE_V6.ends_with(&format!("; version={VERSION}")));
+    for (v, media) in [(5u32, MEDIA_TYPE_V5), (6, MEDIA_TYPE_V6)] {
+        let mut header = b"PBRDFTAB".to_vec();
+        header.extend_from_slice(&v.to_le_bytes());
+        assert_eq!(media_type_of(&header), media);
+        assert!(is_current_media_type(Some(media_type_of(&header))));
+    }
     assert!(!is_current_media_type(Some(
         "application/vnd.polbrdf.table; version=3"
     )));

@@ -300,35 +300,36 @@ pub fn interface_index(spec: &Spec) -> Result<Option<HostSpec>, SpecError> {
     }
 }
 
-/// `top_interface`: its index (a host medium, [`interface_index`]); a rough
-/// one's `alpha` in [`ALPHA_MIN`], 1], then refused: it is solved but not
-/// yet served (docs/solver.md, "A rough top interface").
+/// `top_interface`: its index (a host medium, [`interface_index`]) and a
+/// rough one's `alpha` in [`ALPHA_MIN`], 1]. A smooth (`fresnel`) base is
+/// refused under a rough interface: its mirror beam would need a beam
+/// through the surface, and no beam crosses a rough one (docs/solver.md,
+/// "A rough top interface").
 fn validate_top_interface(spec: &Spec) -> Result<(), SpecError> {
-    if let TopInterfaceSpec::Rough { alpha, .. } = &spec.top_interface {
-        finite_in(
-            "top_interface.rough.alpha",
-            *alpha,
-            ALPHA_MIN,
-            1.0,
-            "[0.05, 1] (a smoother surface is `smooth`)",
-        )?;
-        // Solved (solver::rough_interface) but not served: a table's grazing
-        // nodes need up to 2 048 azimuthal orders, ~47 s and ~5 GB for a
-        // 64-node table (docs/solver.md).
-        return Err(SpecError::new(
-            "top_interface.rough",
-            format!(
-                "a rough top interface (alpha = {alpha}) is not supported yet: its tables \
-                 cost too much to serve (docs/solver.md); \"none\" and \
-                 {{\"smooth\": {{\"index\": …}}}} are"
-            ),
-        ));
-    }
+    let key = match &spec.top_interface {
+        TopInterfaceSpec::None => return Ok(()),
+        TopInterfaceSpec::Smooth { .. } => "smooth",
+        TopInterfaceSpec::Rough { alpha, .. } => {
+            finite_in(
+                "top_interface.rough.alpha",
+                *alpha,
+                ALPHA_MIN,
+                1.0,
+                "[0.05, 1] (a smoother surface is `smooth`)",
+            )?;
+            if matches!(spec.base, BaseSpec::Fresnel { .. }) {
+                return Err(SpecError::new(
+                    "base.fresnel",
+                    "a smooth (mirror) base under a rough top interface is not supported: \
+                     no beam crosses a rough surface to carry the mirror's delta term; \
+                     use {\"rough_fresnel\": {…, \"alpha\": …}} for the base",
+                ));
+            }
+            "rough"
+        }
+    };
     if let Some(h) = spec.top_interface.index() {
-        validate_host("top_interface.smooth.index", h)?;
-    }
-    if spec.top_interface.is_none() {
-        return Ok(());
+        validate_host(&format!("top_interface.{key}.index"), h)?;
     }
     interface_index(spec).map(|_| ())
 }

@@ -133,16 +133,6 @@ pub fn reflection_observed(
         }
         _ => None,
     };
-    // A rough interface: user cosines in air, quadrature in the binder.
-    let rough_top = match &problem.top_interface {
-        Some(TopInterface {
-            index,
-            alpha: Some(alpha),
-        }) => Some(rough_interface::RoughInterface::new(
-            *index, *alpha, &grid, grid.split,
-        )?),
-        _ => None,
-    };
     let (semi_infinite, full) = base_coupling(problem);
     let rough = match &problem.base {
         Base::Rough { surface } if !semi_infinite => {
@@ -150,12 +140,24 @@ pub fn reflection_observed(
         }
         _ => None,
     };
+    // The orders the stack (base included) reflects into; beyond them its
+    // `r^m` is zero.
     let orders = capped_orders(
         problem,
-        layer_orders(problem)
-            .max(rough.as_ref().map_or(0, |r| r.order_count()))
-            .max(rough_top.as_ref().map_or(0, |r| r.order_count())),
+        layer_orders(problem).max(rough.as_ref().map_or(0, |r| r.order_count())),
     );
+    // A rough interface: user cosines in air, quadrature in the binder; what
+    // comes through it has the stack's orders, its own reflection is
+    // evaluated in closed form (`rough_interface`).
+    let rough_top = match &problem.top_interface {
+        Some(TopInterface {
+            index,
+            alpha: Some(alpha),
+        }) => Some(rough_interface::RoughInterface::new(
+            *index, *alpha, &grid, grid.split, orders,
+        )?),
+        _ => None,
+    };
     let one_order = |m: usize| -> Mat<f64> {
         let stack = stack_ops(problem, &grid, m, full);
         let top = match &problem.base {
@@ -227,6 +229,7 @@ pub fn reflection_observed(
         direct: grid.mu_u.iter().map(|m| (-tau_total / m).exp()).collect(),
         correction,
         interface: maps,
+        surface: rough_top.map(|t| t.surface()),
     })
 }
 

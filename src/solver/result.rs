@@ -2,6 +2,7 @@
 //! user cosines, the BRDF they sum to, and realizability.
 
 use super::*;
+use crate::physics::microfacet::RoughSurface;
 use crate::physics::stokes::Mueller;
 use faer::Mat;
 
@@ -29,6 +30,10 @@ pub struct ReflectionFourier {
     /// to beams in air, and [`ReflectionFourier::brdf`] evaluates the
     /// single-scattering correction inside the binder.
     pub interface: Option<interface::InterfaceMaps>,
+    /// A rough top interface's own reflection from above (`R_t` of
+    /// [`super::rough_interface`]), not in `rho`:
+    /// [`ReflectionFourier::brdf`] adds its BRDF at the exact directions.
+    pub surface: Option<RoughSurface>,
 }
 
 impl ReflectionFourier {
@@ -50,8 +55,9 @@ impl ReflectionFourier {
     }
 
     /// [`ReflectionFourier::brdf`] with precomputed `cos mΔφ`, `sin mΔφ`:
-    /// the Fourier part only. When [`ReflectionFourier::correction`] is set,
-    /// add its value at the same angles.
+    /// the Fourier part only. When [`ReflectionFourier::correction`] or
+    /// [`ReflectionFourier::surface`] is set, add its value at the same
+    /// angles.
     pub fn brdf_with_basis(&self, iu: usize, iv: usize, basis: &[(f64, f64)]) -> Mueller {
         let ns = self.ns;
         let mut f = [[0.0; 4]; 4];
@@ -78,8 +84,8 @@ impl ReflectionFourier {
     /// The Mueller BRDF (1/sr, conventions §6) for incident cosine `mu[iv]`,
     /// outgoing `mu[iu]` and **propagation** azimuth difference `dphi_prop`
     /// (radians, 0 = forward side), including the single-scattering
-    /// correction of a delta-M truncated solve. Scalar results fill `[0][0]`
-    /// only.
+    /// correction of a delta-M truncated solve and a rough top interface's
+    /// own reflection. Scalar results fill `[0][0]` only.
     ///
     /// `f μ_0 = Σ_m (2 − δ_m0)/(2π) [bd(ρ^m) cos mΔφ + od(ρ^m) sin mΔφ]`
     /// with `od` as in [`phase`] (UV←IQ block `+`, IQ←UV block `−`).
@@ -103,6 +109,14 @@ impl ReflectionFourier {
             for p in 0..ns {
                 for q in 0..ns {
                     f[p][q] += d[p][q];
+                }
+            }
+        }
+        if let Some(s) = &self.surface {
+            let g = s.mueller(self.mu[iu], mu0, dphi_prop);
+            for p in 0..ns {
+                for q in 0..ns {
+                    f[p][q] += g[p][q];
                 }
             }
         }

@@ -8,7 +8,9 @@
 //! periodic function). `P` doubles from 32 until the coefficients of the top
 //! quarter of the band are below [`AZIMUTH_TOLERANCE`] (the function is
 //! resolved, so the aliasing error is below it too), at most
-//! [`MAX_AZIMUTHS`]. The mirror symmetry
+//! [`MAX_AZIMUTHS`]. When only the orders `m < M` are kept (a rough
+//! interface over a stack of `M` orders) the series is still resolved in
+//! full: the aliases of a kept order come from orders `P ± m`. The mirror symmetry
 //! `f(−Δφ) = D f(Δφ) D` halves the evaluations. In the S1 set of
 //! conventions §7 order `m` of the response to a unit delta in `μ'` is
 //! `ρ^m = 2π μ' F^m` with `F^m = (1/2π)∫ f cos mΔφ` in the IQ/IQ and UV/UV
@@ -123,8 +125,9 @@ fn lagrange(nodes: &[f64], x: f64) -> Vec<f64> {
 }
 
 /// The parts of the ordinates (split at `split`) with their fine nodes:
-/// panels of width at most `panel_rad` in polar angle.
-fn parts(mu_q: &[f64], split: Option<f64>, panel_rad: f64) -> Vec<Part> {
+/// panels of width at most `panel_rad` in polar angle, and a panel
+/// boundary at the cosine `cut` where the kernel jumps ([`Kernels::cut`]).
+fn parts(mu_q: &[f64], split: Option<f64>, panel_rad: f64, cut: Option<f64>) -> Vec<Part> {
     let bounds: Vec<f64> = match split {
         Some(c) => vec![0.0, c, 1.0],
         None => vec![0.0, 1.0],
@@ -136,16 +139,24 @@ fn parts(mu_q: &[f64], split: Option<f64>, panel_rad: f64) -> Vec<Part> {
             .filter(|&i| mu_q[i] > lo && mu_q[i] < hi)
             .collect();
         let nodes: Vec<f64> = idx.iter().map(|&i| mu_q[i]).collect();
-        let (th_lo, th_hi) = (hi.acos(), lo.acos());
-        let panels = ((th_hi - th_lo) / panel_rad).ceil().max(1.0) as usize;
+        // Polar-angle stretches of the part, split at the cut.
+        let mut edges = vec![hi.acos()];
+        if let Some(c) = cut.filter(|&c| c > lo && c < hi) {
+            edges.push(c.acos());
+        }
+        edges.push(lo.acos());
         let (mut mu, mut v) = (Vec::new(), Vec::new());
-        for p in 0..panels {
-            let a = th_lo + (th_hi - th_lo) * p as f64 / panels as f64;
-            let b = th_lo + (th_hi - th_lo) * (p + 1) as f64 / panels as f64;
-            let (x, wx) = gauss_legendre_on(PANEL_NODES, a, b);
-            for (&t, &wt) in x.iter().zip(&wx) {
-                mu.push(t.cos());
-                v.push(wt * t.sin());
+        for e in edges.windows(2) {
+            let (th_lo, th_hi) = (e[0], e[1]);
+            let panels = ((th_hi - th_lo) / panel_rad).ceil().max(1.0) as usize;
+            for p in 0..panels {
+                let a = th_lo + (th_hi - th_lo) * p as f64 / panels as f64;
+                let b = th_lo + (th_hi - th_lo) * (p + 1) as f64 / panels as f64;
+                let (x, wx) = gauss_legendre_on(PANEL_NODES, a, b);
+                for (&t, &wt) in x.iter().zip(&wx) {
+                    mu.push(t.cos());
+                    v.push(wt * t.sin());
+                }
             }
         }
         let basis = mu.iter().map(|&x| lagrange(&nodes, x)).collect();
@@ -166,12 +177,18 @@ pub(super) type Kernel<'a> = dyn Fn(f64, f64, f64) -> Mueller + Sync + 'a;
 /// The kernels of the four blocks (module doc): `r` (quadrature ←
 /// quadrature), `rb` (quadrature ← beam), `ru` (user ← quadrature), `ruu`
 /// (user ← beam). A base uses its BRDF for all four; a rough interface
-/// puts its four operators there (`solver::rough_interface`).
+/// puts its operators there (`solver::rough_interface`), all but `ruu`,
+/// which it evaluates in closed form (`None`: the block stays zero).
 pub(super) struct Kernels<'a> {
     pub r: &'a Kernel<'a>,
     pub rb: &'a Kernel<'a>,
     pub ru: &'a Kernel<'a>,
-    pub ruu: &'a Kernel<'a>,
+    pub ruu: Option<&'a Kernel<'a>>,
+    /// Where `rb` and `ru` jump in the fine cosine they are integrated
+    /// over, given the user or beam cosine (a transmission's horizontal
+    /// facets, `solver::rough_interface`): a fine panel ends there, so that
+    /// the Gauss rule does not straddle the jump. `None` for reflection.
+    pub cut: Option<&'a (dyn Fn(f64) -> f64 + Sync + 'a)>,
 }
 
 /// Fine panels of a lobe of width `alpha`: `α/2` in polar angle, at most 0.2 rad.
@@ -193,6 +210,7 @@ fn pair_series(
     mu_out: f64,
     mu_in: f64,
     ns: usize,
+    max_orders: usize,
     planner: &mut RealFftPlanner<f64>,
 ) -> Vec<[f64; 16]> {
     let eval = |k: usize, p: usize| kernel(mu_out, mu_in, 2.0 * PI * k as f64 / p as f64);
@@ -236,7 +254,7 @@ fn pair_series(
         // In units of the cosine-weighted BRDF: |ρ^m| μ_out = 2π |F^m| μ_out μ_in.
         let small = 2.0 * PI * AZIMUTH_TOLERANCE / mu_out;
         if top <= small || size >= MAX_AZIMUTHS {
-            coef.truncate(size / 4);
+            coef.truncate((size / 4).min(max_orders));
             while coef
                 .last()
                 .is_some_and(|c| c.iter().all(|x| x.abs() <= small))
@@ -278,32 +296,41 @@ impl RoughProjection {
             r: &f,
             rb: &f,
             ru: &f,
-            ruu: &f,
+            ruu: Some(&f),
+            cut: None,
         };
-        Self::of_kernels(&kernels, grid, split, panel_rad)
+        Self::of_kernels(&kernels, grid, split, panel_rad, usize::MAX)
     }
 
-    /// The projection of four kernels (one per block) on `grid`.
+    /// The projection of four kernels (one per block) on `grid`, orders
+    /// `m < max_orders` kept (each pair's series is still resolved in
+    /// full, so that the kept orders are free of aliasing).
     pub(super) fn of_kernels(
         kernels: &Kernels<'_>,
         grid: &Grid,
         split: Option<f64>,
         panel_rad: f64,
+        max_orders: usize,
     ) -> Self {
         let ns = grid.ns;
         let (nq, nu) = (grid.mu_q.len(), grid.mu_u.len());
-        let parts = parts(&grid.mu_q, split, panel_rad);
-        // Rows: every fine node `(part, k)`, then every user direction.
-        let fine: Vec<(usize, usize)> = parts
+        let parts_at = |mu: f64| parts(&grid.mu_q, split, panel_rad, kernels.cut.map(|c| c(mu)));
+        let parts = parts(&grid.mu_q, split, panel_rad, None);
+        // Work items: every fine node `(part, k)` as a row of `r`, every
+        // user direction as a row of `ru` and `ruu`, every beam as a column
+        // of `rb`.
+        #[derive(Clone, Copy)]
+        enum Item {
+            Fine(usize, usize),
+            User(usize),
+            Beam(usize),
+        }
+        let rows: Vec<Item> = parts
             .iter()
             .enumerate()
-            .flat_map(|(p, part)| (0..part.mu.len()).map(move |k| (p, k)))
-            .collect();
-        let rows: Vec<Option<(usize, usize)>> = fine
-            .iter()
-            .copied()
-            .map(Some)
-            .chain(std::iter::repeat_n(None, nu))
+            .flat_map(|(p, part)| (0..part.mu.len()).map(move |k| Item::Fine(p, k)))
+            .chain((0..nu).map(Item::User))
+            .chain((0..nu).map(Item::Beam))
             .collect();
         let empty = || -> [Vec<Series>; 4] {
             [
@@ -313,56 +340,73 @@ impl RoughProjection {
                 vec![Series::new(); nu * nu],
             ]
         };
-        // One row: the series of every pair on it, projected into `acc`.
-        let row_into = |acc: &mut [Vec<Series>; 4],
-                        planner: &mut RealFftPlanner<f64>,
-                        row: usize| {
-            let fine_row = rows[row];
-            let mu_out = match fine_row {
-                Some((p, k)) => parts[p].mu[k],
-                None => grid.mu_u[row - fine.len()],
-            };
-            let (from_q, from_beam) = match fine_row {
-                Some(_) => (kernels.r, kernels.rb),
-                None => (kernels.ru, kernels.ruu),
-            };
-            let mut series =
-                |k: &Kernel<'_>, mu_in: f64| pair_series(k, mu_out, mu_in, ns, planner);
-            // Towards the ordinates: t_j = Σ_l ρ(μ_out, μ_l) v_l ℓ_j(μ_l).
+        // Towards the ordinates: t_j = Σ_l ρ(μ_out, μ_l) v_l ℓ_j(μ_l).
+        let towards = |kernel: &Kernel<'_>,
+                       mu_out: f64,
+                       parts: &[Part],
+                       planner: &mut RealFftPlanner<f64>| {
             let mut t = vec![Series::new(); nq];
-            for part in &parts {
+            for part in parts {
                 for (l, &mu_in) in part.mu.iter().enumerate() {
-                    let c = series(from_q, mu_in);
+                    let c = pair_series(kernel, mu_out, mu_in, ns, max_orders, planner);
                     for (j, &lj) in part.basis[l].iter().enumerate() {
                         add_series(&mut t[part.first + j], part.v[l] * lj, &c);
                     }
                 }
             }
-            let beams: Vec<Series> = grid.mu_u.iter().map(|&mu| series(from_beam, mu)).collect();
+            t
+        };
+        // From fine node `k` of `part` back to the ordinates:
+        // `v_k μ_k ℓ_i(μ_k) / (w_i μ_i)` for each ordinate `i` of the part.
+        let back = |part: &Part, k: usize| -> Vec<(usize, f64)> {
+            part.basis[k]
+                .iter()
+                .enumerate()
+                .map(|(i, &li)| {
+                    let gi = part.first + i;
+                    (
+                        gi,
+                        part.v[k] * part.mu[k] * li / (grid.w_q[gi] * grid.mu_q[gi]),
+                    )
+                })
+                .collect()
+        };
+        // One work item, projected into `acc`.
+        let row_into = |acc: &mut [Vec<Series>; 4],
+                        planner: &mut RealFftPlanner<f64>,
+                        row: usize| {
             let [r, rb, ru, ruu] = acc;
-            match fine_row {
-                // From the fine node back to the ordinates:
-                // v_k μ_k ℓ_i(μ_k) / (w_i μ_i) times the row.
-                Some((p, k)) => {
-                    let part = &parts[p];
-                    for (i, &li) in part.basis[k].iter().enumerate() {
-                        let gi = part.first + i;
-                        let a = part.v[k] * part.mu[k] * li / (grid.w_q[gi] * grid.mu_q[gi]);
+            match rows[row] {
+                Item::Fine(p, k) => {
+                    let t = towards(kernels.r, parts[p].mu[k], &parts, planner);
+                    for (gi, a) in back(&parts[p], k) {
                         for (j, tj) in t.iter().enumerate() {
                             add_series(&mut r[gi * nq + j], a, tj);
                         }
-                        for (v, b) in beams.iter().enumerate() {
-                            add_series(&mut rb[gi * nu + v], a, b);
-                        }
                     }
                 }
-                None => {
-                    let u = row - fine.len();
+                Item::User(u) => {
+                    let mu_out = grid.mu_u[u];
+                    let t = towards(kernels.ru, mu_out, &parts_at(mu_out), planner);
                     for (j, tj) in t.iter().enumerate() {
                         add_series(&mut ru[u * nq + j], 1.0, tj);
                     }
-                    for (v, b) in beams.iter().enumerate() {
-                        add_series(&mut ruu[u * nu + v], 1.0, b);
+                    if let Some(k) = kernels.ruu {
+                        for (v, &mu_in) in grid.mu_u.iter().enumerate() {
+                            let c = pair_series(k, mu_out, mu_in, ns, max_orders, planner);
+                            add_series(&mut ruu[u * nu + v], 1.0, &c);
+                        }
+                    }
+                }
+                Item::Beam(v) => {
+                    let mu_in = grid.mu_u[v];
+                    for part in &parts_at(mu_in) {
+                        for (k, &mu_out) in part.mu.iter().enumerate() {
+                            let c = pair_series(kernels.rb, mu_out, mu_in, ns, max_orders, planner);
+                            for (gi, a) in back(part, k) {
+                                add_series(&mut rb[gi * nu + v], a, &c);
+                            }
+                        }
                     }
                 }
             }

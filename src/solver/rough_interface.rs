@@ -26,6 +26,17 @@
 //! `U = (I − r R_b)^{-1} r T_d` and the reflection in air is
 //! `ρ = R_t + T_u U`: one linear solve per order, the cost of one more
 //! layer plus the projection.
+//!
+//! **`R_t` in closed form.** The reflection from above is the surface's own
+//! BRDF at the user directions: it is not projected, and not part of the
+//! Fourier series. [`super::ReflectionFourier::brdf`] (and a table, at
+//! every query direction) adds it exactly. At a grazing pair of user
+//! directions its gloss lobe is a few milliradians wide in azimuth
+//! (`~α(μ_o + μ_i)` about the forward direction): 2 048 orders and more,
+//! where the rest of the response needs the stack's. Since order `m` of
+//! `T_u U` is a product that holds the stack's `r^m`, it vanishes wherever
+//! `r^m` does: the series of `T_d`, `T_u` and `R_b` are kept up to the
+//! stack's orders only (`max_orders`), resolved in full.
 
 use super::layer::{Ops, identity_minus_product, mm, refined_solve};
 use super::orders::Grid;
@@ -39,16 +50,20 @@ use faer::Mat;
 /// `R_b` in `r` of each order's [`Ops`]).
 pub(super) struct RoughInterface {
     projection: RoughProjection,
+    /// The surface seen from air: `R_t` in closed form.
+    above: RoughSurface,
 }
 
 impl RoughInterface {
     /// Project the interface on `grid` (binder quadrature split at
-    /// `split`, user cosines in air).
+    /// `split`, user cosines in air), orders `m < max_orders` (those of
+    /// the stack beneath).
     pub(super) fn new(
         index: f64,
         alpha: f64,
         grid: &Grid,
         split: Option<f64>,
+        max_orders: usize,
     ) -> Result<Self, super::SolverError> {
         let invalid = |e: crate::physics::PhysicsError| {
             super::SolverError::Invalid(format!("top_interface: {e}"))
@@ -60,39 +75,52 @@ impl RoughInterface {
         let r_b = |mu_out: f64, mu_in: f64, d: f64| below.mueller(mu_out, mu_in, -d);
         let t_d = |mu_out: f64, mu_in: f64, d: f64| above.transmission(mu_out, mu_in, d, true);
         let t_u = |mu_out: f64, mu_in: f64, d: f64| above.transmission(mu_out, mu_in, d, false);
-        let r_t = |mu_out: f64, mu_in: f64, d: f64| above.mueller(mu_out, mu_in, d);
+        // Transmission needs a facet whose normal leans toward the rays'
+        // side: `η_i k_i − η_o k_t` with an upward z, i.e. binder cosines
+        // above `μ_air / n` (for either direction). Just above, GGX's
+        // horizontal facets (`D = α²/π`) still transmit, just below none
+        // do: the kernels jump there.
+        let cut = move |mu_air: f64| mu_air / index;
         let kernels = Kernels {
             r: &r_b,
             rb: &t_d,
             ru: &t_u,
-            ruu: &r_t,
+            ruu: None,
+            cut: Some(&cut),
         };
+        let panels = panel_width(alpha);
         Ok(Self {
-            projection: RoughProjection::of_kernels(&kernels, grid, split, panel_width(alpha)),
+            projection: RoughProjection::of_kernels(&kernels, grid, split, panels, max_orders),
+            above,
         })
     }
 
-    /// Fourier orders the interface reaches.
-    pub(super) fn order_count(&self) -> usize {
-        self.projection.order_count()
+    /// The projected `T_d` (`rb`), `T_u` (`ru`) and `R_b` (`r`) of order `m`.
+    #[cfg(test)]
+    pub(super) fn operators(&self, m: usize) -> Ops {
+        self.projection.ops(m)
+    }
+
+    /// The surface's reflection from above, `R_t`, left out of
+    /// [`RoughInterface::over`]: evaluate it at the user directions.
+    pub(super) fn surface(&self) -> RoughSurface {
+        self.above
     }
 
     /// The reflection in air of order `m` over a stack whose reflection
-    /// seen from inside the binder is `r`: `R_t + T_u (I − r R_b)^{-1} r T_d`.
+    /// seen from inside the binder is `r`, without the surface's own
+    /// ([`RoughInterface::surface`]): `T_u (I − r R_b)^{-1} r T_d`.
     pub(super) fn over(&self, m: usize, r: &Mat<f64>) -> Mat<f64> {
         let Ops {
             r: r_b,
             rb: t_d,
             ru: t_u,
-            ruu: r_t,
             ..
         } = self.projection.ops(m);
         let g = identity_minus_product(r.as_ref(), r_b.as_ref());
         let lu = g.partial_piv_lu();
         let src = mm(r.as_ref(), t_d.as_ref());
         let up = refined_solve(&g, &lu, &src);
-        let mut out = r_t;
-        out += mm(t_u.as_ref(), up.as_ref());
-        out
+        mm(t_u.as_ref(), up.as_ref())
     }
 }

@@ -2,6 +2,8 @@
 //! (`tests/data/benchmarks`, each with its source and citation).
 #![allow(dead_code)]
 
+pub mod ggx;
+
 use polbrdf::physics::expansion::GreekCoefficients;
 use serde_json::Value;
 

@@ -7,7 +7,7 @@
 mod common;
 
 use common::ggx::{dir, ggx, rp_rs};
-use common::{run, scratch_dir, solve_points};
+use common::{scratch_dir, solve_points};
 use serde_json::{Value, json};
 use std::path::PathBuf;
 
@@ -91,10 +91,7 @@ fn a_bare_rough_base_is_the_ggx_microfacet_model() {
 }
 
 fn refusal(spec: &Value) -> String {
-    let s = write("bad.json", spec);
-    let (code, _, err) = run(&["solve", s.to_str().unwrap()]);
-    assert_eq!(code, 2, "{err}");
-    err
+    common::refused("rough-base", spec)
 }
 
 /// A roughness out of range or missing is refused with its path; a

@@ -155,15 +155,7 @@ fn a_rough_interface_tends_to_the_smooth_one_as_alpha_goes_to_zero() {
 fn the_projected_transmission_is_smooth_in_the_beam_angle() {
     let deg: Vec<f64> = (0..36).map(|k| 69.9 + 0.02 * k as f64).collect();
     let mu: Vec<f64> = deg.iter().map(|d| d.to_radians().cos()).collect();
-    let s = problem(
-        Thickness::Finite(0.0),
-        1.0,
-        GreekCoefficients::rayleigh(0.0),
-        Base::Black,
-        8,
-    )
-    .settings;
-    let split = super::quadrature_split(&under(
+    let bare = under(
         problem(
             Thickness::Finite(0.0),
             1.0,
@@ -172,8 +164,9 @@ fn the_projected_transmission_is_smooth_in_the_beam_angle() {
             8,
         ),
         Some(0.3),
-    ));
-    let grid = Grid::split(&s, &mu, split);
+    );
+    let split = super::quadrature_split(&bare);
+    let grid = Grid::split(&bare.settings, &mu, split);
     let ops = super::rough_interface::RoughInterface::new(BINDER, 0.3, &grid, split, 4)
         .unwrap()
         .operators(0);

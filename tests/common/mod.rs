@@ -158,3 +158,14 @@ fn prune_exited(root: &std::path::Path) {
 pub fn probe_grid() -> (Vec<f64>, Vec<f64>) {
     polbrdf::cli::convergence::probe_grid()
 }
+
+/// `polbrdf solve` of `spec` (written to `bad.json` in the scratch
+/// directory `name`): it must be refused as bad input (exit code 2); its
+/// stderr.
+pub fn refused(name: &str, spec: &Value) -> String {
+    let p = scratch_dir(name).join("bad.json");
+    std::fs::write(&p, serde_json::to_string(spec).unwrap()).unwrap();
+    let (code, _, err) = run(&["solve", p.to_str().unwrap()]);
+    assert_eq!(code, 2, "{err}");
+    err
+}

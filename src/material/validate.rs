@@ -329,7 +329,18 @@ fn validate_top_interface(spec: &Spec) -> Result<(), SpecError> {
         }
     };
     if let Some(h) = spec.top_interface.index() {
-        validate_host(&format!("top_interface.{key}.index"), h)?;
+        let path = format!("top_interface.{key}.index");
+        validate_host(&path, h)?;
+        if let (TopInterfaceSpec::Rough { .. }, HostSpec::Index(n)) = (&spec.top_interface, h) {
+            finite_in(
+                &path,
+                *n,
+                crate::solver::ROUGH_INTERFACE_MIN_INDEX,
+                10.0,
+                "[1.1, 10] (a rough interface's refracted lobe, α(1 − 1/n) wide, \
+                 becomes a delta as n → 1; a binder this close to air needs no interface)",
+            )?;
+        }
     }
     interface_index(spec).map(|_| ())
 }

@@ -236,6 +236,64 @@ impl RoughSurface {
     }
 }
 
+/// Polar angles where a kernel's Fourier coefficients stop being smooth
+/// in one cosine at a fixed other (module doc of `solver::rough_base`,
+/// "Edges"), as cosines in `(0, 1)`.
+impl RoughSurface {
+    /// Critical angle of the facets for reflection, when the light comes
+    /// from the denser side of a weakly absorbing medium (`k < 0.5`,
+    /// `n < ambient`): `sin θ_c = n / ambient`. Beyond it the facet
+    /// reflects totally; at it the Fresnel matrix has a square-root edge.
+    pub fn critical_angle(&self) -> Option<f64> {
+        (self.index.k < 0.5 && self.index.n < self.ambient)
+            .then(|| (self.index.n / self.ambient).asin())
+    }
+
+    /// Cosines `μ'` where the reflection's Fourier coefficients at the
+    /// cosine `mu` are not smooth in `μ'`. The facet angle `θ_d` of a pair
+    /// obeys `cos 2θ_d = cos θ cos θ' + sin θ sin θ' cos Δφ` (both rays
+    /// pointing away from the surface), monotone in `Δφ` on `[0, π]`, so the
+    /// total-reflection edge `θ_d = θ_c` enters or leaves the azimuth range
+    /// where `θ + θ' = 2θ_c` or `|θ − θ'| = 2θ_c`: a kink in `μ'` there.
+    pub fn reflection_edges(&self, mu: f64) -> Vec<f64> {
+        let Some(tc) = self.critical_angle() else {
+            return Vec::new();
+        };
+        let th = mu.clamp(0.0, 1.0).acos();
+        in_hemisphere(&[2.0 * tc - th, th - 2.0 * tc, th + 2.0 * tc])
+    }
+
+    /// Cosines on the `index` side (real index `n`) where the transmission
+    /// to or from the ambient-side cosine `mu` is not smooth in them: the
+    /// jump at `μ' = ambient μ / n`, where the facet normal that refracts
+    /// the pair turns horizontal (`D = α²/π` there, no facet beyond), and
+    /// the kinks where the pair's deviation `δ = angle(k_i, k_t)` reaches
+    /// its largest value `acos(η_low/η_high)` (a facet crossed at grazing
+    /// incidence, or at the critical angle the other way) at azimuth 0 or
+    /// π: `|θ − θ'| = δ_max` and `θ + θ' = δ_max`.
+    pub fn transmission_edges(&self, mu: f64) -> Vec<f64> {
+        let n = self.index.n;
+        let (lo, hi) = (n.min(self.ambient), n.max(self.ambient));
+        let d = (lo / hi).acos();
+        let th = mu.clamp(0.0, 1.0).acos();
+        let mut e = in_hemisphere(&[th - d, th + d, d - th]);
+        let jump = self.ambient * mu / n;
+        if jump > 0.0 && jump < 1.0 {
+            e.push(jump);
+        }
+        e
+    }
+}
+
+/// The cosines of the polar angles strictly inside `(0, π/2)`.
+fn in_hemisphere(angles: &[f64]) -> Vec<f64> {
+    angles
+        .iter()
+        .filter(|&&t| t > 0.0 && t < std::f64::consts::FRAC_PI_2)
+        .map(|t| t.cos())
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

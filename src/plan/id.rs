@@ -23,7 +23,13 @@ use crate::material::canonical::canonical_json;
 /// gold, iron oxide, AlGaAs and silver, interpolated linearly.
 pub const SCHEMA_VERSION: &str = "3";
 
-/// Version of the solver's results mixed into every id. Version 5: the
+/// Version of the solver's results mixed into every id. Version 6: the
+/// fine panels of a rough surface's projection end at its kernels' edges
+/// (facet total reflection, the transmission's jump and largest
+/// deviation) and a rough interface's transmission panels are as narrow
+/// as its refracted lobe (`solver::rough_base`, "Edges"): results under a
+/// rough interface and over a rough dielectric base of lower index than
+/// its ambient moved by up to 3e-6 1/sr. Version 5: the
 /// error estimate also credits the levels' observed algebraic order
 /// (`solver::accuracy` (A3)), so stated estimates of pre-asymptotic solves
 /// grew, and a `solver.tolerance` level's last change is measured from the
@@ -35,7 +41,7 @@ pub const SCHEMA_VERSION: &str = "3";
 /// changed. Version 3: the Greek coefficient `ε` is read and written in the
 /// Siewert sign of conventions §4 (`b2 = −Σ ε_l d^l_02`); version 2 read a
 /// user's `ε` with the opposite sign.
-pub const SOLVER_VERSION: &str = "5";
+pub const SOLVER_VERSION: &str = "6";
 
 /// The version label stored with every cached row: `"polbrdf-spec/S
 /// polbrdf-solver/V"`. A row with another label is never served (docs/service.md).
@@ -85,7 +91,7 @@ mod tests {
         assert_eq!(id_of_spec(&a), id_of_spec(&b));
         let (c, id) = id_of_spec(&a);
         assert_eq!(id, digest::sha256_hex(id_preimage(&c).as_bytes()));
-        assert!(id_preimage(&c).starts_with("polbrdf-spec/3\npolbrdf-solver/5\n{"));
+        assert!(id_preimage(&c).starts_with("polbrdf-spec/3\npolbrdf-solver/6\n{"));
     }
 
     #[test]

@@ -52,6 +52,7 @@ use orders::*;
 pub use orders::{discrete_ordinates, interface_split, quadrature_split};
 pub use problem::{Base, Layer, Problem, Settings, SolverError, Thickness, TopInterface};
 pub use result::{REALIZABILITY_TOL, ReflectionFourier, fourier_sum, make_realizable};
+pub use rough_interface::MIN_INDEX as ROUGH_INTERFACE_MIN_INDEX;
 use validate::validate;
 pub use validate::{UNRESOLVED_TOLERANCE, check_resolved};
 

@@ -40,6 +40,16 @@
 //! (`Σ_i ℓ_i = 1`), and as `α → 0`, since the Gauss rule integrates
 //! `ℓ_i ℓ_j μ` exactly (`= w_i μ_i δ_ij`), the blocks tend to the mirror's
 //! `δ_ij M_F(μ_i)` wherever the beam lands, between ordinates included.
+//!
+//! **Edges.** The Gauss rule of a panel is spectrally accurate only where
+//! the integrand is smooth. A kernel's Fourier coefficients in one cosine
+//! at a fixed other stop being smooth where one of the kernel's edges
+//! (facet total reflection, [`RoughSurface::reflection_edges`]; the
+//! transmission's jump and largest deviation,
+//! [`RoughSurface::transmission_edges`]) enters or leaves the azimuth
+//! range: a fine panel ends at each (docs/solver.md, "Edges, and panels as
+//! narrow as the lobe"). Before they did, the 6-node rule left 1.5–2.9e-6
+//! 1/sr under a rough interface, ~7× the stated stream error.
 
 use super::layer::Ops;
 use super::orders::Grid;
@@ -65,7 +75,7 @@ pub const AZIMUTH_TOLERANCE: f64 = 1e-8;
 pub const MAX_AZIMUTHS: usize = 1 << 13;
 
 /// Gauss nodes per fine panel.
-const PANEL_NODES: usize = 6;
+pub(super) const PANEL_NODES: usize = 6;
 
 /// The rough base's operators for every Fourier order it reflects into:
 /// each `ns × ns` entry of each block as its own Fourier series (most
@@ -126,8 +136,15 @@ fn lagrange(nodes: &[f64], x: f64) -> Vec<f64> {
 
 /// The parts of the ordinates (split at `split`) with their fine nodes:
 /// panels of width at most `panel_rad` in polar angle, and a panel
-/// boundary at the cosine `cut` where the kernel jumps ([`Kernels::cut`]).
-fn parts(mu_q: &[f64], split: Option<f64>, panel_rad: f64, cut: Option<f64>) -> Vec<Part> {
+/// boundary at each cosine of `cuts` where the kernel jumps or has a kink
+/// ([`Kernels`]).
+fn parts(
+    mu_q: &[f64],
+    split: Option<f64>,
+    panel_rad: f64,
+    panel_nodes: usize,
+    cuts: &[f64],
+) -> Vec<Part> {
     let bounds: Vec<f64> = match split {
         Some(c) => vec![0.0, c, 1.0],
         None => vec![0.0, 1.0],
@@ -139,12 +156,16 @@ fn parts(mu_q: &[f64], split: Option<f64>, panel_rad: f64, cut: Option<f64>) -> 
             .filter(|&i| mu_q[i] > lo && mu_q[i] < hi)
             .collect();
         let nodes: Vec<f64> = idx.iter().map(|&i| mu_q[i]).collect();
-        // Polar-angle stretches of the part, split at the cut.
-        let mut edges = vec![hi.acos()];
-        if let Some(c) = cut.filter(|&c| c > lo && c < hi) {
-            edges.push(c.acos());
+        // Polar-angle stretches of the part, split at the cuts (one closer
+        // than 1e-9 rad to another edge is that edge).
+        let mut edges = vec![hi.acos(), lo.acos()];
+        for &c in cuts.iter().filter(|&&c| c > lo && c < hi) {
+            let t = c.acos();
+            if edges.iter().all(|e| (e - t).abs() > 1e-9) {
+                edges.push(t);
+            }
         }
-        edges.push(lo.acos());
+        edges.sort_by(f64::total_cmp);
         let (mut mu, mut v) = (Vec::new(), Vec::new());
         for e in edges.windows(2) {
             let (th_lo, th_hi) = (e[0], e[1]);
@@ -152,7 +173,7 @@ fn parts(mu_q: &[f64], split: Option<f64>, panel_rad: f64, cut: Option<f64>) -> 
             for p in 0..panels {
                 let a = th_lo + (th_hi - th_lo) * p as f64 / panels as f64;
                 let b = th_lo + (th_hi - th_lo) * (p + 1) as f64 / panels as f64;
-                let (x, wx) = gauss_legendre_on(PANEL_NODES, a, b);
+                let (x, wx) = gauss_legendre_on(panel_nodes, a, b);
                 for (&t, &wt) in x.iter().zip(&wx) {
                     mu.push(t.cos());
                     v.push(wt * t.sin());
@@ -184,16 +205,32 @@ pub(super) struct Kernels<'a> {
     pub rb: &'a Kernel<'a>,
     pub ru: &'a Kernel<'a>,
     pub ruu: Option<&'a Kernel<'a>>,
-    /// Where `rb` and `ru` jump in the fine cosine they are integrated
-    /// over, given the user or beam cosine (a transmission's horizontal
-    /// facets, `solver::rough_interface`): a fine panel ends there, so that
-    /// the Gauss rule does not straddle the jump. `None` for reflection.
-    pub cut: Option<&'a (dyn Fn(f64) -> f64 + Sync + 'a)>,
+    /// Where `rb` and `ru` jump or have a kink in the fine cosine they are
+    /// integrated over, given the user or beam cosine (a transmission's
+    /// edges, [`RoughSurface::transmission_edges`]): a fine panel ends at
+    /// each, so that no Gauss rule straddles one (module doc, "Edges").
+    pub crossing_edges: Option<&'a Edges<'a>>,
+    /// The same for `r` in one fine cosine given the other (a reflection's
+    /// total-reflection edges, [`RoughSurface::reflection_edges`]).
+    pub reflection_edges: Option<&'a Edges<'a>>,
 }
+
+/// Cosines where a kernel is not smooth in one cosine, given the other.
+pub(super) type Edges<'a> = dyn Fn(f64) -> Vec<f64> + Sync + 'a;
 
 /// Fine panels of a lobe of width `alpha`: `α/2` in polar angle, at most 0.2 rad.
 pub(super) fn panel_width(alpha: f64) -> f64 {
     0.5 * alpha.min(0.4)
+}
+
+/// Widths (rad) of the fine panels of the reflection kernels (`r`, and a
+/// base's `rb`, `ru`) and of the crossing ones (an interface's `rb`, `ru`).
+#[derive(Clone, Copy)]
+pub(super) struct Panels {
+    pub reflection: f64,
+    pub crossing: f64,
+    /// Gauss nodes per panel ([`PANEL_NODES`]).
+    pub nodes: usize,
 }
 
 /// Sign of element `(p, q)` under `f(−Δφ) = D f(Δφ) D`, `D = diag(1,1,−1,−1)`:
@@ -292,14 +329,21 @@ impl RoughProjection {
         panel_rad: f64,
     ) -> Self {
         let f = |mu_out: f64, mu_in: f64, d: f64| surface.mueller(mu_out, mu_in, d);
+        let edges = |mu: f64| surface.reflection_edges(mu);
         let kernels = Kernels {
             r: &f,
             rb: &f,
             ru: &f,
             ruu: Some(&f),
-            cut: None,
+            crossing_edges: Some(&edges),
+            reflection_edges: Some(&edges),
         };
-        Self::of_kernels(&kernels, grid, split, panel_rad, usize::MAX)
+        let panels = Panels {
+            reflection: panel_rad,
+            crossing: panel_rad,
+            nodes: PANEL_NODES,
+        };
+        Self::of_kernels(&kernels, grid, split, panels, usize::MAX)
     }
 
     /// The projection of four kernels (one per block) on `grid`, orders
@@ -309,13 +353,44 @@ impl RoughProjection {
         kernels: &Kernels<'_>,
         grid: &Grid,
         split: Option<f64>,
-        panel_rad: f64,
+        panels: Panels,
         max_orders: usize,
     ) -> Self {
         let ns = grid.ns;
         let (nq, nu) = (grid.mu_q.len(), grid.mu_u.len());
-        let parts_at = |mu: f64| parts(&grid.mu_q, split, panel_rad, kernels.cut.map(|c| c(mu)));
-        let parts = parts(&grid.mu_q, split, panel_rad, None);
+        let edges = |e: Option<&Edges<'_>>, mu: f64| e.map(|e| e(mu)).unwrap_or_default();
+        let parts_at = |mu: f64| {
+            parts(
+                &grid.mu_q,
+                split,
+                panels.crossing,
+                panels.nodes,
+                &edges(kernels.crossing_edges, mu),
+            )
+        };
+        let parts_r = |mu: f64| {
+            parts(
+                &grid.mu_q,
+                split,
+                panels.reflection,
+                panels.nodes,
+                &edges(kernels.reflection_edges, mu),
+            )
+        };
+        // The rows of `r`: the inner integral at a fine cosine is not
+        // smooth where one of its edges meets an end of an inner part.
+        let row_cuts: Vec<f64> = [Some(1.0), split, Some(0.0)]
+            .into_iter()
+            .flatten()
+            .flat_map(|b| edges(kernels.reflection_edges, b))
+            .collect();
+        let parts = parts(
+            &grid.mu_q,
+            split,
+            panels.reflection,
+            panels.nodes,
+            &row_cuts,
+        );
         // Work items: every fine node `(part, k)` as a row of `r`, every
         // user direction as a row of `ru` and `ruu`, every beam as a column
         // of `rb`.
@@ -378,7 +453,7 @@ impl RoughProjection {
             let [r, rb, ru, ruu] = acc;
             match rows[row] {
                 Item::Fine(p, k) => {
-                    let t = towards(kernels.r, parts[p].mu[k], &parts, planner);
+                    let t = towards(kernels.r, parts[p].mu[k], &parts_r(parts[p].mu[k]), planner);
                     for (gi, a) in back(&parts[p], k) {
                         for (j, tj) in t.iter().enumerate() {
                             add_series(&mut r[gi * nq + j], a, tj);

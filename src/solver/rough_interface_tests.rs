@@ -18,6 +18,21 @@ fn under(mut p: Problem, alpha: Option<f64>) -> Problem {
     p
 }
 
+/// An empty stack (a zero-thickness layer) over a black base under the
+/// interface of roughness `alpha`, at `streams`.
+fn bare(streams: usize, alpha: f64) -> Problem {
+    under(
+        problem(
+            Thickness::Finite(0.0),
+            1.0,
+            GreekCoefficients::rayleigh(0.0),
+            Base::Black,
+            streams,
+        ),
+        Some(alpha),
+    )
+}
+
 /// Nothing scatters under it and the base is black: nothing comes back
 /// through the surface (every Fourier coefficient is zero) and the BRDF is
 /// the surface's own reflection, evaluated in closed form.
@@ -25,16 +40,7 @@ fn under(mut p: Problem, alpha: Option<f64>) -> Problem {
 fn a_bare_rough_interface_reflects_as_its_microfacet_model() {
     let mu = [0.15, 0.5, 0.8, 1.0];
     let alpha = 0.3;
-    let p = under(
-        problem(
-            Thickness::Finite(0.0),
-            1.0,
-            GreekCoefficients::rayleigh(0.0),
-            Base::Black,
-            8,
-        ),
-        Some(alpha),
-    );
+    let p = bare(8, alpha);
     let surface = RoughSurface::new(1.0, RefractiveIndex { n: BINDER, k: 0.0 }, alpha).unwrap();
     let r = reflection(&p, &mu).unwrap();
     assert_eq!(r.surface, Some(surface));
@@ -155,16 +161,7 @@ fn a_rough_interface_tends_to_the_smooth_one_as_alpha_goes_to_zero() {
 fn the_projected_transmission_is_smooth_in_the_beam_angle() {
     let deg: Vec<f64> = (0..36).map(|k| 69.9 + 0.02 * k as f64).collect();
     let mu: Vec<f64> = deg.iter().map(|d| d.to_radians().cos()).collect();
-    let bare = under(
-        problem(
-            Thickness::Finite(0.0),
-            1.0,
-            GreekCoefficients::rayleigh(0.0),
-            Base::Black,
-            8,
-        ),
-        Some(0.3),
-    );
+    let bare = bare(8, 0.3);
     let split = super::quadrature_split(&bare);
     let grid = Grid::split(&bare.settings, &mu, split);
     let ops = super::rough_interface::RoughInterface::new(BINDER, 0.3, &grid, split, 4)
@@ -207,16 +204,7 @@ fn the_projected_transmission_is_smooth_in_the_beam_angle() {
 /// facet total reflection is a square-root edge in azimuth, docs/solver.md.)
 #[test]
 fn the_projected_transmission_is_converged_in_its_fine_panels() {
-    let bare = under(
-        problem(
-            Thickness::Finite(0.0),
-            1.0,
-            GreekCoefficients::rayleigh(0.0),
-            Base::Black,
-            16,
-        ),
-        Some(0.3),
-    );
+    let bare = bare(16, 0.3);
     let mu = [1.0, 0.97, 0.8, 0.5, 0.15];
     let split = super::quadrature_split(&bare);
     let grid = Grid::split(&bare.settings, &mu, split);

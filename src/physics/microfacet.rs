@@ -562,6 +562,38 @@ mod tests {
     /// et al. 2007, eq. 17 turned around), and reflected plus transmitted
     /// power is at most 1 (short of it by the model's lost multiple facet
     /// bounces: 1 − 0.877 at α = 0.5, μ_in = 0.5 into glass).
+    /// The edges where they are by geometry: none for a conductor; from
+    /// inside glass (θ_c = 41.81°) at 2θ_c − θ and θ + 2θ_c; the
+    /// transmission's jump at μ/n and its largest deviation acos(1/n) on
+    /// both sides of the air angle.
+    #[test]
+    fn edges_are_where_the_geometry_puts_them() {
+        let deg = |mu: &[f64]| {
+            let mut d: Vec<f64> = mu.iter().map(|m| m.acos().to_degrees()).collect();
+            d.sort_by(f64::total_cmp);
+            d
+        };
+        let metal = RoughSurface::new(1.5, ALUMINIUM, 0.3).unwrap();
+        assert!(metal.critical_angle().is_none());
+        assert!(metal.reflection_edges(0.9).is_empty());
+        let inside = RoughSurface::new(1.5, RefractiveIndex { n: 1.0, k: 0.0 }, 0.3).unwrap();
+        let tc = (1.0f64 / 1.5).asin().to_degrees();
+        let e = deg(&inside.reflection_edges(3f64.to_radians().cos()));
+        assert_eq!(e.len(), 2, "{e:?}");
+        assert!((e[0] - (2.0 * tc - 3.0)).abs() < 1e-9 && (e[1] - (2.0 * tc + 3.0)).abs() < 1e-9);
+        let air = RoughSurface::new(1.0, GLASS, 0.3).unwrap();
+        let mu = 30f64.to_radians().cos();
+        let dmax = (1.0f64 / 1.5).acos().to_degrees();
+        let e = deg(&air.transmission_edges(mu));
+        let jump = (mu / 1.5).acos().to_degrees();
+        let mut want = vec![dmax - 30.0, 30.0 + dmax, jump];
+        want.sort_by(f64::total_cmp);
+        assert_eq!(e.len(), 3, "{e:?}");
+        for (a, b) in e.iter().zip(&want) {
+            assert!((a - b).abs() < 1e-9, "{e:?} vs {want:?}");
+        }
+    }
+
     #[test]
     fn transmitted_power_matches_the_half_vector_integral() {
         // Both integrands have kinks off the panel edges (where facets

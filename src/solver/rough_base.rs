@@ -59,6 +59,7 @@ use crate::physics::stokes::Mueller;
 use faer::Mat;
 use rayon::prelude::*;
 use realfft::RealFftPlanner;
+use std::borrow::Cow;
 use std::f64::consts::PI;
 
 /// Size of the Fourier coefficients at which a pair's azimuthal series
@@ -107,6 +108,7 @@ fn add_series(dst: &mut Series, a: f64, src: &[[f64; 16]]) {
 /// Fine nodes of one part of the ordinates: cosines, weights, and the part's
 /// ordinates' Lagrange basis at each (`basis[k][j]` for the part's `j`-th
 /// ordinate, its index in the grid `first + j`).
+#[derive(Clone)]
 struct Part {
     first: usize,
     mu: Vec<f64>,
@@ -368,14 +370,22 @@ impl RoughProjection {
                 &edges(kernels.crossing_edges, mu),
             )
         };
-        let parts_r = |mu: f64| {
-            parts(
-                &grid.mu_q,
-                split,
-                panels.reflection,
-                panels.nodes,
-                &edges(kernels.reflection_edges, mu),
-            )
+        // Inner parts of a row of `r`: the plain ones, built once, where no
+        // edge falls at that row (a conductor base: every row).
+        let plain = parts(&grid.mu_q, split, panels.reflection, panels.nodes, &[]);
+        let parts_r = |mu: f64| -> Cow<'_, [Part]> {
+            let e = edges(kernels.reflection_edges, mu);
+            if e.is_empty() {
+                Cow::Borrowed(&plain)
+            } else {
+                Cow::Owned(parts(
+                    &grid.mu_q,
+                    split,
+                    panels.reflection,
+                    panels.nodes,
+                    &e,
+                ))
+            }
         };
         // The rows of `r`: the inner integral at a fine cosine is not
         // smooth where one of its edges meets an end of an inner part.

@@ -39,6 +39,21 @@ fn points(geometry: &[(f64, f64, f64, f64)]) -> Value {
     json!({ "points": pts })
 }
 
+/// `spec` solved at the direction pairs `geometry` and as a table: the
+/// solved matrices and the table's path (files named after `name`).
+fn solve_and_table(
+    name: &str,
+    spec: &Value,
+    geometry: &[(f64, f64, f64, f64)],
+) -> (Vec<[[f64; 4]; 4]>, PathBuf) {
+    let s = write(&format!("{name}.json"), spec);
+    let p = write(&format!("{name}-points.json"), &points(geometry));
+    let solved = solve_points(s.to_str().unwrap(), p.to_str().unwrap());
+    let t = scratch_dir("rough-interface").join(format!("{name}.pbrdf"));
+    ok(&["solve", s.to_str().unwrap(), "--table", t.to_str().unwrap()]);
+    (solved, t)
+}
+
 fn eval(table: &str, (ti, pi, to, po): (f64, f64, f64, f64)) -> Value {
     let (ti, pi, to, po) = (
         ti.to_string(),
@@ -122,11 +137,7 @@ fn a_bare_rough_interface_is_the_ggx_reflection_in_a_solve_and_a_table() {
         (88.0, 0.0, 87.0, 181.5),
         (89.0, 10.0, 80.0, 190.0),
     ];
-    let s = write("bare.json", &spec);
-    let p = write("bare-points.json", &points(&geometry));
-    let solved = solve_points(s.to_str().unwrap(), p.to_str().unwrap());
-    let t = scratch_dir("rough-interface").join("bare.pbrdf");
-    ok(&["solve", s.to_str().unwrap(), "--table", t.to_str().unwrap()]);
+    let (solved, t) = solve_and_table("bare", &spec, &geometry);
     for (&g, m) in geometry.iter().zip(&solved) {
         let (f11, full) = microfacet(n, alpha, g);
         check(&format!("solve {g:?}"), m, f11, full, 1e-10);
@@ -162,11 +173,7 @@ fn a_table_under_a_rough_interface_serves_the_solve() {
         (70.0, 0.0, 20.0, 10.0),
         (80.0, 0.0, 75.0, 180.0),
     ];
-    let s = write("layer.json", &spec);
-    let p = write("layer-points.json", &points(&geometry));
-    let solved = solve_points(s.to_str().unwrap(), p.to_str().unwrap());
-    let t = scratch_dir("rough-interface").join("layer.pbrdf");
-    ok(&["solve", s.to_str().unwrap(), "--table", t.to_str().unwrap()]);
+    let (solved, t) = solve_and_table("layer", &spec, &geometry);
     for (&g, m) in geometry.iter().zip(&solved) {
         let e = matrix(&eval(t.to_str().unwrap(), g)["mueller"]);
         assert!(max_diff(&e, m) < 1e-4 * m[0][0], "{g:?}: {e:?} vs {m:?}");

@@ -263,6 +263,22 @@ impl RoughSurface {
         in_hemisphere(&[2.0 * tc - th, th - 2.0 * tc, th + 2.0 * tc])
     }
 
+    /// The propagation azimuth `Δφ_e ∈ (0, π)` (module doc) at which the
+    /// facet angle of the pair `(mu_out, mu_in)` is the critical angle: the
+    /// facets that reflect it totally are those of `|Δφ| < Δφ_e` (the mirror
+    /// side), and the BRDF has a square-root edge in azimuth there (the
+    /// Fresnel coefficients of `cos θ_t = √(1 − sin²θ_d/sin²θ_c)`). In
+    /// propagation azimuth `cos 2θ_d = cos θ cos θ' − sin θ sin θ' cos Δφ`.
+    /// `None` without total reflection or where the whole azimuth range is
+    /// on one side of it.
+    pub fn reflection_azimuth_edge(&self, mu_out: f64, mu_in: f64) -> Option<f64> {
+        let tc = self.critical_angle()?;
+        let (mu_out, mu_in) = (mu_out.clamp(MU_MIN, 1.0), mu_in.clamp(MU_MIN, 1.0));
+        let sines = ((1.0 - mu_out * mu_out) * (1.0 - mu_in * mu_in)).sqrt();
+        let c = (mu_out * mu_in - (2.0 * tc).cos()) / sines;
+        (c > -1.0 && c < 1.0).then(|| c.acos())
+    }
+
     /// Cosines on the `index` side (real index `n`) where the transmission
     /// to or from the ambient-side cosine `mu` is not smooth in them: the
     /// jump at `μ' = ambient μ / n`, where the facet normal that refracts
@@ -592,6 +608,39 @@ mod tests {
         for (a, b) in e.iter().zip(&want) {
             assert!((a - b).abs() < 1e-9, "{e:?} vs {want:?}");
         }
+    }
+
+    /// At the azimuth edge the facet that mirrors the pair is at the
+    /// critical angle (from the rays' own vectors, not the formula), and
+    /// the BRDF is that of total reflection on the mirror side of it only.
+    #[test]
+    fn the_azimuth_edge_is_where_the_facet_is_at_the_critical_angle() {
+        let inside = RoughSurface::new(1.5, RefractiveIndex { n: 1.0, k: 0.0 }, 0.3).unwrap();
+        let cos_c = (1.0f64 / 1.5).asin().cos();
+        for (mu_out, mu_in) in [(0.9, 0.2), (0.5, 0.5), (0.2, 0.3), (0.99, 0.05)] {
+            let e = inside
+                .reflection_azimuth_edge(mu_out, mu_in)
+                .expect("the edge is inside the azimuth range");
+            assert!(e > 0.0 && e < PI);
+            let (k_in, _, _) = meridian_frame(-mu_in, 0.0);
+            let (k_out, _, _) = meridian_frame(mu_out, e);
+            let h = unit([0, 1, 2].map(|c| k_out[c] - k_in[c])).unwrap();
+            assert!((dot(k_out, h) - cos_c).abs() < 1e-12, "{mu_out} {mu_in}");
+            // Total reflection keeps all the light the facets send: the
+            // Mueller matrix's degree of polarization changes, not f11's
+            // Fresnel factor, which is 1 before the edge and below it after.
+            let fresnel_11 = |d: f64| {
+                let (k_out, _, _) = meridian_frame(mu_out, d);
+                let h = unit([0, 1, 2].map(|c| k_out[c] - k_in[c])).unwrap();
+                fresnel::mueller(1.5, inside.index, dot(k_out, h)).unwrap()[0][0]
+            };
+            assert!((fresnel_11(e * 0.999) - 1.0).abs() < 1e-12);
+            assert!(fresnel_11(e * 1.001 + 1e-3) < 0.999);
+        }
+        // Both rays steep: every facet is below the critical angle.
+        assert_eq!(inside.reflection_azimuth_edge(0.99, 0.99), None);
+        let metal = RoughSurface::new(1.5, ALUMINIUM, 0.3).unwrap();
+        assert_eq!(metal.reflection_azimuth_edge(0.5, 0.5), None);
     }
 
     #[test]

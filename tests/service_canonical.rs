@@ -23,7 +23,7 @@ fn documented_test_vector() {
     let id = block(&doc, "text test-vector-id");
 
     // The recipe, over the literal documented bytes.
-    let preimage = format!("polbrdf-spec/3\npolbrdf-solver/6\n{canonical}");
+    let preimage = format!("polbrdf-spec/3\npolbrdf-solver/7\n{canonical}");
     let independent: String = Sha256::digest(preimage.as_bytes())
         .iter()
         .map(|b| format!("{b:02x}"))
@@ -36,5 +36,5 @@ fn documented_test_vector() {
     assert_eq!(c, canonical, "canonical JSON of the documented spec");
     assert_eq!(i, id.trim());
     assert_eq!(polbrdf::plan::SCHEMA_VERSION, "3");
-    assert_eq!(polbrdf::plan::SOLVER_VERSION, "6");
+    assert_eq!(polbrdf::plan::SOLVER_VERSION, "7");
 }

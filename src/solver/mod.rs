@@ -21,6 +21,7 @@
 //! (`depth`), and the error estimate (`accuracy`).
 
 pub mod accuracy;
+mod azimuth;
 mod depth;
 mod field;
 mod fluxes;

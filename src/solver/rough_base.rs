@@ -2,19 +2,10 @@
 //! [`crate::physics::microfacet::RoughSurface`] on the solver's grid
 //! (docs/solver.md, "Rough bases").
 //!
-//! **Azimuth.** For each pair of cosines the BRDF is sampled at `P`
-//! equally spaced propagation azimuths and its Fourier coefficients taken by
-//! a real FFT (the trapezoidal rule, spectrally accurate for a smooth
-//! periodic function). `P` doubles from 32 until the coefficients of the top
-//! quarter of the band are below [`AZIMUTH_TOLERANCE`] (the function is
-//! resolved, so the aliasing error is below it too), at most
-//! [`MAX_AZIMUTHS`]. When only the orders `m < M` are kept (a rough
-//! interface over a stack of `M` orders) the series is still resolved in
-//! full: the aliases of a kept order come from orders `P ± m`. The mirror symmetry
-//! `f(−Δφ) = D f(Δφ) D` halves the evaluations. In the S1 set of
-//! conventions §7 order `m` of the response to a unit delta in `μ'` is
-//! `ρ^m = 2π μ' F^m` with `F^m = (1/2π)∫ f cos mΔφ` in the IQ/IQ and UV/UV
-//! blocks, `+(1/2π)∫ f sin mΔφ` in the UV←IQ block and `−` that in IQ←UV.
+//! **Azimuth.** For each pair of cosines the kernel's Fourier series in
+//! propagation azimuth ([`super::azimuth::pair_series`]: an FFT, or split
+//! Gauss rules across a total-reflection edge), `ρ^m = 2π μ' F^m` in the
+//! S1 set of conventions §7.
 //!
 //! **Polar angle.** The lobe is as narrow as `α` in angle, far narrower
 //! than the gaps between discrete ordinates at small `α`, so neither its
@@ -24,8 +15,8 @@
 //! onto them so that its flux-weighted moments are kept,
 //! `Σ_i w_i μ_i g(μ_i) L_i = ∫ g μ L dμ` for `g` of degree `< N`. Both
 //! integrals run over fine composite Gauss nodes `μ_k` (weights `v_k`,
-//! panels of width `α/2` in polar angle, at most 0.2 rad, every ordinate
-//! part on its own):
+//! panels of width `α/2` in polar angle, at most 0.2 rad, ending at every
+//! second ordinate, every ordinate part on its own):
 //!
 //! ```text
 //! r_ij   = Σ_k Σ_l v_k μ_k ℓ_i(μ_k) ρ(μ_k, μ_l) v_l ℓ_j(μ_l) / (w_i μ_i)   quadrature ← quadrature
@@ -51,6 +42,7 @@
 //! narrow as the lobe"). Before they did, the 6-node rule left 1.5–2.9e-6
 //! 1/sr under a rough interface, ~7× the stated stream error.
 
+use super::azimuth::pair_series;
 use super::layer::Ops;
 use super::orders::Grid;
 use crate::physics::microfacet::RoughSurface;
@@ -60,23 +52,13 @@ use faer::Mat;
 use rayon::prelude::*;
 use realfft::RealFftPlanner;
 use std::borrow::Cow;
-use std::f64::consts::PI;
-
-/// Size of the Fourier coefficients at which a pair's azimuthal series
-/// counts as resolved, in units of the cosine-weighted BRDF `f μ_out μ_in`
-/// (at most `1/π` for a white Lambertian surface). A BRDF value at a
-/// grazing pair is that over `μ_out μ_in`, summed over its orders:
-/// measured on a glass surface (α = 0.3) at `μ = 0.15` both ways, 5.7e-5 f
-/// (2.3e-7 in `f μ_out μ_in`); at `1e-10` 4e-7 f, for the same order
-/// count where the series converges, but tables' grazing nodes then hit
-/// [`MAX_AZIMUTHS`].
-pub const AZIMUTH_TOLERANCE: f64 = 1e-8;
-
-/// Most azimuth samples per pair of cosines.
-pub const MAX_AZIMUTHS: usize = 1 << 13;
 
 /// Gauss nodes per fine panel.
 pub(super) const PANEL_NODES: usize = 6;
+
+/// A fine panel ends at every `ORDINATE_STEP`-th ordinate of a part
+/// ([`parts`]; docs/solver.md, "Where light is trapped").
+const ORDINATE_STEP: usize = 2;
 
 /// The rough base's operators for every Fourier order it reflects into:
 /// each `ns × ns` entry of each block as its own Fourier series (most
@@ -159,22 +141,30 @@ fn parts(
             .collect();
         let nodes: Vec<f64> = idx.iter().map(|&i| mu_q[i]).collect();
         // Polar-angle stretches of the part, split at the cuts (one closer
-        // than 1e-9 rad to another edge is that edge).
-        let mut edges = vec![hi.acos(), lo.acos()];
-        for &c in cuts.iter().filter(|&&c| c > lo && c < hi) {
+        // than 1e-9 rad to another edge is that edge), each edge marked
+        // if it is a cut.
+        let mut edges = vec![(hi.acos(), false), (lo.acos(), false)];
+        for &c in cuts.iter().filter(|&&c| c >= lo && c <= hi) {
             let t = c.acos();
-            if edges.iter().all(|e| (e - t).abs() > 1e-9) {
-                edges.push(t);
+            match edges.iter_mut().find(|(e, _)| (e - t).abs() <= 1e-9) {
+                Some(e) => e.1 = true,
+                None => edges.push((t, true)),
             }
         }
-        edges.sort_by(f64::total_cmp);
+        // A panel also ends at every second ordinate of the part: the
+        // Lagrange basis oscillates on the ordinates' spacing, which
+        // panels as wide as the lobe do not follow at many streams.
+        for &x in nodes.iter().skip(ORDINATE_STEP / 2).step_by(ORDINATE_STEP) {
+            let t = x.acos();
+            if edges.iter().all(|(e, _)| (e - t).abs() > 1e-9) {
+                edges.push((t, false));
+            }
+        }
+        edges.sort_by(|a, b| a.0.total_cmp(&b.0));
         let (mut mu, mut v) = (Vec::new(), Vec::new());
         for e in edges.windows(2) {
-            let (th_lo, th_hi) = (e[0], e[1]);
-            let panels = ((th_hi - th_lo) / panel_rad).ceil().max(1.0) as usize;
-            for p in 0..panels {
-                let a = th_lo + (th_hi - th_lo) * p as f64 / panels as f64;
-                let b = th_lo + (th_hi - th_lo) * (p + 1) as f64 / panels as f64;
+            let ((th_lo, cut_lo), (th_hi, cut_hi)) = (e[0], e[1]);
+            for (a, b) in stretch_panels(th_lo, th_hi, panel_rad, cut_lo, cut_hi) {
                 let (x, wx) = gauss_legendre_on(panel_nodes, a, b);
                 for (&t, &wt) in x.iter().zip(&wx) {
                     mu.push(t.cos());
@@ -193,9 +183,88 @@ fn parts(
     out
 }
 
+/// Levels of the geometric grading of a panel towards a cut, and their
+/// ratio ([`stretch_panels`]).
+const GRADING: (usize, f64) = (3, 0.15);
+
+/// The panels `(a, b)` of the polar-angle stretch `[lo, hi]`: equal ones
+/// at most `panel_rad` wide, the one at an end that is a cut graded
+/// geometrically towards it (widths `h σ^L, …, h σ(1 − σ), h(1 − σ)` of its
+/// width `h`, [`GRADING`]). At a cut the kernel's coefficients are not
+/// smooth (`x log x`, `x^{3/4}` in the distance where an edge enters the
+/// azimuth range, docs/solver.md), which a Gauss rule on a panel of
+/// uniform width integrates only algebraically.
+fn stretch_panels(lo: f64, hi: f64, panel_rad: f64, cut_lo: bool, cut_hi: bool) -> Vec<(f64, f64)> {
+    let mut panels = ((hi - lo) / panel_rad).ceil().max(1.0) as usize;
+    if cut_lo && cut_hi {
+        panels = panels.max(2);
+    }
+    let at = |p: usize| lo + (hi - lo) * p as f64 / panels as f64;
+    let (levels, ratio) = GRADING;
+    // The breakpoints of the panel from `start` to `end`, graded towards
+    // `start`, in ascending order.
+    let graded = |start: f64, end: f64| -> Vec<f64> {
+        let mut pts = vec![start];
+        pts.extend(
+            (1..=levels)
+                .rev()
+                .map(|l| start + (end - start) * ratio.powi(l as i32)),
+        );
+        pts.push(end);
+        if start > end {
+            pts.reverse();
+        }
+        pts
+    };
+    let mut pts = Vec::new();
+    for p in 0..panels {
+        let (a, b) = (at(p), at(p + 1));
+        let piece = match (p == 0 && cut_lo, p + 1 == panels && cut_hi) {
+            (true, _) => graded(a, b),
+            (false, true) => graded(b, a),
+            (false, false) => vec![a, b],
+        };
+        if pts.is_empty() {
+            pts.extend(piece);
+        } else {
+            pts.extend(&piece[1..]);
+        }
+    }
+    pts.windows(2).map(|w| (w[0], w[1])).collect()
+}
+
 /// A BRDF or BTDF `f(μ_out, μ_in, Δφ_prop)` (1/sr, meridian frames) obeying
-/// the mirror symmetry `f(−Δφ) = D f(Δφ) D` ([`parity`]).
+/// the mirror symmetry `f(−Δφ) = D f(Δφ) D`.
 pub(super) type Kernel<'a> = dyn Fn(f64, f64, f64) -> Mueller + Sync + 'a;
+
+/// The propagation azimuth in `(0, π)` at which a kernel has a
+/// square-root edge at a pair of cosines `(μ_out, μ_in)`, if it has one
+/// there ([`RoughSurface::reflection_azimuth_edge`]).
+pub(super) type AzimuthEdge<'a> = dyn Fn(f64, f64) -> Option<f64> + Sync + 'a;
+
+/// A block's kernel, and its edge in azimuth if it can have one (facet
+/// total reflection): the pair's series is then integrated across it by
+/// split rules ([`super::azimuth`]).
+#[derive(Clone, Copy)]
+pub(super) struct Lobe<'a> {
+    pub f: &'a Kernel<'a>,
+    pub azimuth_edge: Option<&'a AzimuthEdge<'a>>,
+}
+
+impl Lobe<'_> {
+    /// The pair's Fourier series, orders `m < max_orders` ([`pair_series`]).
+    fn series(
+        &self,
+        mu_out: f64,
+        mu_in: f64,
+        ns: usize,
+        max_orders: usize,
+        planner: &mut RealFftPlanner<f64>,
+    ) -> Vec<[f64; 16]> {
+        let edge = self.azimuth_edge.and_then(|e| e(mu_out, mu_in));
+        pair_series(self.f, edge, mu_out, mu_in, ns, max_orders, planner)
+    }
+}
 
 /// The kernels of the four blocks (module doc): `r` (quadrature ←
 /// quadrature), `rb` (quadrature ← beam), `ru` (user ← quadrature), `ruu`
@@ -203,10 +272,10 @@ pub(super) type Kernel<'a> = dyn Fn(f64, f64, f64) -> Mueller + Sync + 'a;
 /// puts its operators there (`solver::rough_interface`), all but `ruu`,
 /// which it evaluates in closed form (`None`: the block stays zero).
 pub(super) struct Kernels<'a> {
-    pub r: &'a Kernel<'a>,
-    pub rb: &'a Kernel<'a>,
-    pub ru: &'a Kernel<'a>,
-    pub ruu: Option<&'a Kernel<'a>>,
+    pub r: Lobe<'a>,
+    pub rb: Lobe<'a>,
+    pub ru: Lobe<'a>,
+    pub ruu: Option<Lobe<'a>>,
     /// Where `rb` and `ru` jump or have a kink in the fine cosine they are
     /// integrated over, given the user or beam cosine (a transmission's
     /// edges, [`RoughSurface::transmission_edges`]): a fine panel ends at
@@ -215,6 +284,10 @@ pub(super) struct Kernels<'a> {
     /// The same for `r` in one fine cosine given the other (a reflection's
     /// total-reflection edges, [`RoughSurface::reflection_edges`]).
     pub reflection_edges: Option<&'a Edges<'a>>,
+    /// `r` is only ever used between `rb` and `ru` of the same order (a
+    /// rough interface's `T_u (I − r R_b)^{-1} r T_d`): its orders stop
+    /// where either of theirs does.
+    pub r_within_crossing_orders: bool,
 }
 
 /// Cosines where a kernel is not smooth in one cosine, given the other.
@@ -235,87 +308,6 @@ pub(super) struct Panels {
     pub nodes: usize,
 }
 
-/// Sign of element `(p, q)` under `f(−Δφ) = D f(Δφ) D`, `D = diag(1,1,−1,−1)`:
-/// `+1` for the even (cosine) blocks, `−1` for the odd (sine) ones.
-fn parity(p: usize, q: usize) -> f64 {
-    if (p < 2) == (q < 2) { 1.0 } else { -1.0 }
-}
-
-/// The S1-set Fourier coefficients `ρ^m = 2π μ_in F^m` (module doc) of the
-/// BRDF at one pair of cosines, `m = 0..`, each `ns × ns` flattened
-/// row-major; converged in azimuth as the module doc says.
-fn pair_series(
-    kernel: &Kernel<'_>,
-    mu_out: f64,
-    mu_in: f64,
-    ns: usize,
-    max_orders: usize,
-    planner: &mut RealFftPlanner<f64>,
-) -> Vec<[f64; 16]> {
-    let eval = |k: usize, p: usize| kernel(mu_out, mu_in, 2.0 * PI * k as f64 / p as f64);
-    let mut size = 32;
-    // Samples at Δφ_k = 2πk/size for k = 0..=size/2.
-    let mut half: Vec<_> = (0..=size / 2).map(|k| eval(k, size)).collect();
-    loop {
-        let fft = planner.plan_fft_forward(size);
-        let mut input = fft.make_input_vec();
-        let mut spectrum = fft.make_output_vec();
-        let bands = size / 2 + 1;
-        let mut coef = vec![[0.0; 16]; bands];
-        for p in 0..ns {
-            for q in 0..ns {
-                let sign = parity(p, q);
-                for (k, x) in input.iter_mut().enumerate() {
-                    *x = if k <= size / 2 {
-                        half[k][p][q]
-                    } else {
-                        sign * half[size - k][p][q]
-                    };
-                }
-                fft.process(&mut input, &mut spectrum)
-                    .expect("buffers from the plan");
-                let scale = 2.0 * PI * mu_in / size as f64;
-                for (m, z) in spectrum.iter().enumerate() {
-                    // (1/2π)∫ f cos = Re X/P; (1/2π)∫ f sin = −Im X/P.
-                    let x = match (p < 2, q < 2) {
-                        (true, true) | (false, false) => z.re,
-                        (false, true) => -z.im,
-                        (true, false) => z.im,
-                    };
-                    coef[m][p * ns + q] = scale * x;
-                }
-            }
-        }
-        let top: f64 = coef[size / 4..]
-            .iter()
-            .flat_map(|c| c.iter())
-            .fold(0.0, |a, &x| a.max(x.abs()));
-        // In units of the cosine-weighted BRDF: |ρ^m| μ_out = 2π |F^m| μ_out μ_in.
-        let small = 2.0 * PI * AZIMUTH_TOLERANCE / mu_out;
-        if top <= small || size >= MAX_AZIMUTHS {
-            coef.truncate((size / 4).min(max_orders));
-            while coef
-                .last()
-                .is_some_and(|c| c.iter().all(|x| x.abs() <= small))
-            {
-                coef.pop();
-            }
-            return coef;
-        }
-        let doubled = 2 * size;
-        half = (0..=size)
-            .map(|k| {
-                if k % 2 == 0 {
-                    half[k / 2]
-                } else {
-                    eval(k, doubled)
-                }
-            })
-            .collect();
-        size = doubled;
-    }
-}
-
 impl RoughProjection {
     /// The projection of `surface` on `grid` (its ordinates split at
     /// `split`, as the grid was built), `ns` Stokes components.
@@ -332,13 +324,19 @@ impl RoughProjection {
     ) -> Self {
         let f = |mu_out: f64, mu_in: f64, d: f64| surface.mueller(mu_out, mu_in, d);
         let edges = |mu: f64| surface.reflection_edges(mu);
+        let edge = |mu_out: f64, mu_in: f64| surface.reflection_azimuth_edge(mu_out, mu_in);
+        let lobe = Lobe {
+            f: &f,
+            azimuth_edge: Some(&edge),
+        };
         let kernels = Kernels {
-            r: &f,
-            rb: &f,
-            ru: &f,
-            ruu: Some(&f),
+            r: lobe,
+            rb: lobe,
+            ru: lobe,
+            ruu: Some(lobe),
             crossing_edges: Some(&edges),
             reflection_edges: Some(&edges),
+            r_within_crossing_orders: false,
         };
         let panels = Panels {
             reflection: panel_rad,
@@ -426,14 +424,15 @@ impl RoughProjection {
             ]
         };
         // Towards the ordinates: t_j = Σ_l ρ(μ_out, μ_l) v_l ℓ_j(μ_l).
-        let towards = |kernel: &Kernel<'_>,
+        let towards = |kernel: Lobe<'_>,
                        mu_out: f64,
                        parts: &[Part],
+                       max_orders: usize,
                        planner: &mut RealFftPlanner<f64>| {
             let mut t = vec![Series::new(); nq];
             for part in parts {
                 for (l, &mu_in) in part.mu.iter().enumerate() {
-                    let c = pair_series(kernel, mu_out, mu_in, ns, max_orders, planner);
+                    let c = kernel.series(mu_out, mu_in, ns, max_orders, planner);
                     for (j, &lj) in part.basis[l].iter().enumerate() {
                         add_series(&mut t[part.first + j], part.v[l] * lj, &c);
                     }
@@ -459,11 +458,13 @@ impl RoughProjection {
         // One work item, projected into `acc`.
         let row_into = |acc: &mut [Vec<Series>; 4],
                         planner: &mut RealFftPlanner<f64>,
-                        row: usize| {
+                        row: usize,
+                        orders_r: usize| {
             let [r, rb, ru, ruu] = acc;
             match rows[row] {
                 Item::Fine(p, k) => {
-                    let t = towards(kernels.r, parts[p].mu[k], &parts_r(parts[p].mu[k]), planner);
+                    let mu_out = parts[p].mu[k];
+                    let t = towards(kernels.r, mu_out, &parts_r(mu_out), orders_r, planner);
                     for (gi, a) in back(&parts[p], k) {
                         for (j, tj) in t.iter().enumerate() {
                             add_series(&mut r[gi * nq + j], a, tj);
@@ -472,13 +473,13 @@ impl RoughProjection {
                 }
                 Item::User(u) => {
                     let mu_out = grid.mu_u[u];
-                    let t = towards(kernels.ru, mu_out, &parts_at(mu_out), planner);
+                    let t = towards(kernels.ru, mu_out, &parts_at(mu_out), max_orders, planner);
                     for (j, tj) in t.iter().enumerate() {
                         add_series(&mut ru[u * nq + j], 1.0, tj);
                     }
                     if let Some(k) = kernels.ruu {
                         for (v, &mu_in) in grid.mu_u.iter().enumerate() {
-                            let c = pair_series(k, mu_out, mu_in, ns, max_orders, planner);
+                            let c = k.series(mu_out, mu_in, ns, max_orders, planner);
                             add_series(&mut ruu[u * nu + v], 1.0, &c);
                         }
                     }
@@ -487,7 +488,7 @@ impl RoughProjection {
                     let mu_in = grid.mu_u[v];
                     for part in &parts_at(mu_in) {
                         for (k, &mu_out) in part.mu.iter().enumerate() {
-                            let c = pair_series(kernels.rb, mu_out, mu_in, ns, max_orders, planner);
+                            let c = kernels.rb.series(mu_out, mu_in, ns, max_orders, planner);
                             for (gi, a) in back(part, k) {
                                 add_series(&mut rb[gi * nu + v], a, &c);
                             }
@@ -496,27 +497,40 @@ impl RoughProjection {
                 }
             }
         };
+        let merge = |mut a: [Vec<Series>; 4], b: [Vec<Series>; 4]| {
+            for (x, y) in a.iter_mut().zip(&b) {
+                for (p, q) in x.iter_mut().zip(y) {
+                    add_series(p, 1.0, q);
+                }
+            }
+            a
+        };
         // One accumulator per thread, rows dealt round-robin: grazing rows
         // cost the most.
         let threads = rayon::current_num_threads().max(1);
-        let blocks = (0..threads)
-            .into_par_iter()
-            .map(|first| {
-                let mut acc = empty();
-                let mut planner = RealFftPlanner::<f64>::new();
-                for row in (first..rows.len()).step_by(threads) {
-                    row_into(&mut acc, &mut planner, row);
-                }
-                acc
-            })
-            .reduce(empty, |mut a, b| {
-                for (x, y) in a.iter_mut().zip(&b) {
-                    for (p, q) in x.iter_mut().zip(y) {
-                        add_series(p, 1.0, q);
+        let pass = |items: &[usize], orders_r: usize| {
+            (0..threads)
+                .into_par_iter()
+                .map(|first| {
+                    let mut acc = empty();
+                    let mut planner = RealFftPlanner::<f64>::new();
+                    for &row in items.iter().skip(first).step_by(threads) {
+                        row_into(&mut acc, &mut planner, row, orders_r);
                     }
-                }
-                a
-            });
+                    acc
+                })
+                .reduce(empty, merge)
+        };
+        let (fine, crossing): (Vec<usize>, Vec<usize>) =
+            (0..rows.len()).partition(|&row| matches!(rows[row], Item::Fine(..)));
+        let outer = pass(&crossing, max_orders);
+        let orders_r = if kernels.r_within_crossing_orders {
+            let len = |block: &[Series]| block.iter().map(Vec::len).max().unwrap_or(0);
+            len(&outer[1]).min(len(&outer[2])).min(max_orders)
+        } else {
+            max_orders
+        };
+        let blocks = merge(outer, pass(&fine, orders_r));
         Self { ns, nq, nu, blocks }
     }
 
@@ -552,5 +566,44 @@ impl RoughProjection {
         fill(&mut o.ru, ru, nq);
         fill(&mut o.ruu, ruu, nu);
         o
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The panels tile the stretch; at a cut the first is `σ^L` of its
+    /// panel's width and each next `1/σ` times the one before; an end that
+    /// is not a cut keeps equal panels.
+    #[test]
+    fn panels_are_graded_towards_cuts_only() {
+        let (levels, ratio) = GRADING;
+        for (cut_lo, cut_hi) in [(false, false), (true, false), (false, true), (true, true)] {
+            let p = stretch_panels(0.2, 0.9, 0.15, cut_lo, cut_hi);
+            assert_eq!(p[0].0, 0.2);
+            assert!((p.last().unwrap().1 - 0.9).abs() < 1e-15);
+            assert!(p.windows(2).all(|w| w[0].1 == w[1].0 && w[0].0 < w[0].1));
+            let width = |q: (f64, f64)| q.1 - q.0;
+            let h = 0.7 / 5.0;
+            assert_eq!(p.len(), 5 + levels * (cut_lo as usize + cut_hi as usize));
+            for (cut, first, next) in [
+                (cut_lo, p[0], p[1]),
+                (cut_hi, p[p.len() - 1], p[p.len() - 2]),
+            ] {
+                let want = if cut {
+                    h * ratio.powi(levels as i32)
+                } else {
+                    h
+                };
+                assert!((width(first) - want).abs() < 1e-12, "{p:?}");
+                if cut {
+                    assert!(
+                        (width(next) - want * (1.0 / ratio - 1.0)).abs() < 1e-12,
+                        "{p:?}"
+                    );
+                }
+            }
+        }
     }
 }

@@ -200,8 +200,7 @@ fn the_projected_transmission_is_smooth_in_the_beam_angle() {
 /// narrow as the refracted lobe (`crossing_panel_width`). With the
 /// reflection's panels the 6-node rule was off by 0.9e-6 1/sr at normal
 /// incidence (f11 = 0.12; TiO2 under binder 1.5, `α = 0.3`), ~7× what the
-/// stream estimate states. (`R_b` is not converged to this level: its
-/// facet total reflection is a square-root edge in azimuth, docs/solver.md.)
+/// stream estimate states. (`R_b`: the next test.)
 #[test]
 fn the_projected_transmission_is_converged_in_its_fine_panels() {
     let bare = bare(16, 0.3);
@@ -235,4 +234,60 @@ fn the_projected_transmission_is_converged_in_its_fine_panels() {
             assert!(diff <= 1e-8 * most, "m = {m} {name}: {diff:e} of {most:e}");
         }
     }
+}
+
+/// `R_b` is converged in its panels where light is trapped. Under the
+/// interface lies a reflector that sends light back up at every angle and
+/// polarizes it: 0.45 of an aluminium mirror (its Fresnel Mueller matrix
+/// seen from the binder) plus, at order 0, a Lambertian reflector of
+/// albedo 0.45 (`r_ij = 2 a w_j μ_j` in I). What leaves is the sum of its
+/// many round trips, `T_u (I − r R_b)^{-1} r T_d`: with 12 Gauss nodes per
+/// panel instead of 6 it moves by at most 1e-8 of its largest value.
+/// Each of these once failed it (docs/solver.md, "Where light is
+/// trapped"): the FFT's aliasing of the square-root edge in azimuth
+/// (`solver::azimuth` splits the rule there), panels of uniform width at
+/// a cut (`rough_base::stretch_panels` grades them), and panels wider
+/// than the ordinates' spacing, which do not resolve the mirror's
+/// Lagrange basis (a panel now ends at every second ordinate).
+#[test]
+fn the_internal_reflection_is_converged_where_light_is_trapped() {
+    let bare = bare(16, 0.3);
+    let mu = [1.0, 0.9, 0.6, 0.3, 0.1];
+    let split = super::quadrature_split(&bare);
+    let grid = Grid::split(&bare.settings, &mu, split);
+    let at = |nodes: usize| {
+        super::rough_interface::RoughInterface::with_nodes(BINDER, 0.3, &grid, split, 2, nodes)
+            .unwrap()
+    };
+    let (ns, nq) = (4, grid.mu_q.len());
+    let aluminium = RefractiveIndex { n: 1.2, k: 7.26 };
+    let mirror = super::orders::mirror_blocks(&grid.mu_q, ns, &|mu| {
+        crate::physics::fresnel::mueller(BINDER, aluminium, mu).unwrap()
+    });
+    let (coarse, fine) = (at(super::rough_base::PANEL_NODES), at(12));
+    let (mut most, mut diff) = (0.0f64, 0.0f64);
+    for m in 0..2 {
+        let mut r = Mat::<f64>::zeros(nq * ns, nq * ns);
+        for i in 0..nq * ns {
+            for j in 0..nq * ns {
+                r[(i, j)] = 0.45 * mirror[(i, j)];
+            }
+        }
+        if m == 0 {
+            for i in 0..nq {
+                for j in 0..nq {
+                    r[(i * ns, j * ns)] += 2.0 * 0.45 * grid.w_q[j] * grid.mu_q[j];
+                }
+            }
+        }
+        let (x, y) = (coarse.over(m, &r), fine.over(m, &r));
+        for i in 0..y.nrows() {
+            for j in 0..y.ncols() {
+                most = most.max(y[(i, j)].abs());
+                diff = diff.max((x[(i, j)] - y[(i, j)]).abs());
+            }
+        }
+    }
+    eprintln!("moved by {:.2e} of the largest value", diff / most);
+    assert!(diff <= 1e-8 * most, "moved by {diff:e} of {most:e}");
 }

@@ -243,12 +243,13 @@ fn the_projected_transmission_is_converged_in_its_fine_panels() {
 /// albedo 0.45 (`r_ij = 2 a w_j μ_j` in I). What leaves is the sum of its
 /// many round trips, `T_u (I − r R_b)^{-1} r T_d`: with 12 Gauss nodes per
 /// panel instead of 6 it moves by at most 1e-8 of its largest value.
-/// Each of these once failed it (docs/solver.md, "Where light is
-/// trapped"): the FFT's aliasing of the square-root edge in azimuth
-/// (`solver::azimuth` splits the rule there), panels of uniform width at
-/// a cut (`rough_base::stretch_panels` grades them), and panels wider
-/// than the ordinates' spacing, which do not resolve the mirror's
-/// Lagrange basis (a panel now ends at every second ordinate).
+/// Solver version 6 moved by 3.6e-6 here: its `α/2` panels, wider than
+/// the ordinates' spacing, do not resolve the mirror's Lagrange basis (a
+/// panel now ends at every second ordinate). The other two fixes of
+/// version 7 were measured with the Lambertian alone (0.9; docs/solver.md,
+/// "Where light is trapped"): the FFT's aliasing of the square-root edge
+/// in azimuth (`solver::azimuth` splits the rule there) and panels of
+/// uniform width at a cut (`rough_base::stretch_panels` grades them).
 #[test]
 fn the_internal_reflection_is_converged_where_light_is_trapped() {
     let bare = bare(16, 0.3);

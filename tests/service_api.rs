@@ -623,12 +623,23 @@ async fn listing_and_error_edges() {
     assert_eq!(
         keys,
         [
+            "base",
             "created_at",
             "error_estimate",
+            "finished_at",
             "id",
+            "layers",
+            "links",
+            "materials",
+            "progress",
+            "size",
+            "solve_time_ms",
             "status",
+            "streams",
+            "tolerance",
             "updated_at",
-            "wavelengths"
+            "wavelengths",
+            "wavelengths_nm"
         ]
     );
     assert_eq!(item["status"], "done");

@@ -98,5 +98,28 @@ fn table_media_types_and_the_listing_are_documented() {
         .iter()
         .map(|p| p["name"].as_str().unwrap())
         .collect();
-    assert_eq!(params, ["limit", "cursor"]);
+    assert_eq!(
+        params,
+        [
+            "limit",
+            "cursor",
+            "status",
+            "material",
+            "base",
+            "wavelength_nm",
+            "thickness",
+            "q",
+            "sort"
+        ]
+    );
+    // The console's routes: live events and the pictures of a result.
+    for (path, media) in [
+        ("/v1/events", "text/event-stream"),
+        ("/v1/brdfs/{id}/thumbnail", "image/png"),
+        ("/v1/brdfs/{id}/plot", "image/svg+xml"),
+        ("/v1/brdfs/{id}/metadata", "application/json"),
+    ] {
+        let ok = &doc["paths"][path]["get"]["responses"]["200"]["content"];
+        assert!(ok.get(media).is_some(), "{path}: {media} missing: {ok}");
+    }
 }

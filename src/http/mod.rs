@@ -18,14 +18,19 @@
 
 pub mod brdfs;
 pub mod config;
+pub mod console;
 pub mod error;
 pub mod eval;
+pub mod events;
+pub mod listing;
 pub mod needs_doc;
 pub mod ops;
 pub mod optics;
+pub mod previews;
 pub mod problem;
 pub mod results;
 pub mod scenes;
+pub mod summary;
 
 pub use config::{Config, Limits, LogFormat};
 pub use error::ApiError;
@@ -56,6 +61,8 @@ pub struct App {
     pub tables: results::TableCache,
     /// Recent derived exports (`GET …/table?format=…`).
     pub exports: brdfs::ExportCache,
+    /// Recent lobe plots (`GET …/plot`).
+    pub plots: previews::PlotCache,
 }
 
 /// Handler state: a cheap clone of the shared [`App`].
@@ -102,9 +109,13 @@ impl utoipa::Modify for BearerAuth {
 /// Every route of the service, with its OpenAPI description.
 pub fn routes() -> OpenApiRouter<AppState> {
     OpenApiRouter::with_openapi(ApiDoc::openapi())
-        .routes(api!(brdfs::create_brdf, brdfs::list_brdfs))
+        .routes(api!(brdfs::create_brdf, listing::list_brdfs))
         .routes(api!(brdfs::get_brdf, brdfs::delete_brdf))
         .routes(api!(brdfs::get_table))
+        .routes(api!(previews::get_thumbnail))
+        .routes(api!(previews::get_plot))
+        .routes(api!(previews::get_metadata))
+        .routes(api!(events::events))
         .routes(api!(scenes::create_scene))
         .routes(api!(optics::post_optics))
         .routes(api!(eval::get_eval, eval::post_eval))
@@ -125,6 +136,7 @@ pub fn openapi() -> utoipa::openapi::OpenApi {
 pub fn router(state: AppState) -> Router {
     let (router, _) = routes().split_for_parts();
     router
+        .merge(console::router())
         .route_layer(middleware::from_fn_with_state(state.clone(), authorize))
         .route_layer(middleware::from_fn_with_state(state.clone(), track))
         .fallback(no_route)
@@ -235,14 +247,14 @@ async fn track(State(state): State<AppState>, req: Request, next: Next) -> Respo
 
 /// Bearer-token check: submissions need `--token` when it is set; reads
 /// (results, metrics) need it too with `--token-reads`; `/healthz` and
-/// `/readyz` are always open.
+/// `/readyz` and the console's assets (`/`, `/console/…`) are always open.
 async fn authorize(State(state): State<AppState>, req: Request, next: Next) -> Response {
     let config = &state.0.config;
     let Some(token) = config.token.as_deref() else {
         return next.run(req).await;
     };
     let path = req.uri().path();
-    let open = path == "/healthz" || path == "/readyz";
+    let open = path == "/healthz" || path == "/readyz" || console::is_console_path(path);
     let write = !matches!(*req.method(), Method::GET | Method::HEAD);
     if open || !(write || config.token_reads) {
         return next.run(req).await;
@@ -336,6 +348,7 @@ pub async fn serve(
         jobs: jobs.clone(),
         tables: results::TableCache::default(),
         exports: brdfs::ExportCache::default(),
+        plots: previews::PlotCache::default(),
     }));
     let stopping = jobs.clone();
     axum::serve(listener, router(state))

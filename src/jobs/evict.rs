@@ -142,13 +142,16 @@ impl Jobs {
         Ok(Deleted::Gone)
     }
 
-    /// Delete a blob no done row points at any more.
+    /// Delete a blob no done row points at any more, and its previews
+    /// (the console's thumbnails).
     async fn delete_blob_if_unused(&self, digest: &str) -> Result<(), JobError> {
         if self.index.digest_in_use(digest).await? {
             return Ok(());
         }
-        let (blobs, d) = (self.blobs.clone(), digest.to_string());
-        tokio::task::spawn_blocking(move || blobs.delete(&d))
+        let mut doomed = self.index.take_previews(digest).await?;
+        doomed.push(digest.to_string());
+        let blobs = self.blobs.clone();
+        tokio::task::spawn_blocking(move || doomed.iter().try_for_each(|d| blobs.delete(d)))
             .await
             .map_err(|e| JobError::Storage(e.to_string()))?
             .map_err(|e| JobError::Storage(e.to_string()))

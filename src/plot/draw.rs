@@ -158,6 +158,19 @@ pub fn write(fig: &Figure, path: &Path) -> Result<(), String> {
     }
 }
 
+/// `fig` as SVG text (the service's plots, `GET /v1/brdfs/{id}/plot`).
+/// The font must have been registered ([`register_font`]).
+pub fn svg_string(fig: &Figure) -> Result<String, String> {
+    let (w, h) = fig.size;
+    let mut out = String::new();
+    {
+        let root = SVGBackend::with_string(&mut out, (w, h)).into_drawing_area();
+        draw_figure(&root, fig)?;
+        root.present().map_err(err)?;
+    }
+    Ok(out)
+}
+
 /// Encode an RGB buffer as an 8-bit PNG.
 fn write_png(path: &Path, rgb: &[u8], w: u32, h: u32) -> Result<(), String> {
     let io = |e: &dyn std::fmt::Display| format!("{}: {e}", path.display());

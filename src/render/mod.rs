@@ -23,6 +23,7 @@ pub mod polarization;
 pub mod sampling;
 pub mod scene;
 pub mod scene_plan;
+pub mod thumbnail;
 
 use crate::brdf::Table;
 use crate::physics::stokes::degree_of_polarization;

@@ -163,6 +163,7 @@ macro_rules! on_backend {
 
 // After the macro: the queue and eviction methods dispatch with it too.
 pub mod evict;
+pub mod previews;
 pub mod queue;
 
 impl Index {

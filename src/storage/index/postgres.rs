@@ -24,7 +24,7 @@ use std::time::Duration;
 /// The index in a PostgreSQL database.
 #[derive(Clone, Debug)]
 pub struct PgIndex {
-    pool: PgPool,
+    pub(super) pool: PgPool,
 }
 
 impl PgIndex {

@@ -17,7 +17,7 @@ use std::time::Duration;
 /// The index in a SQLite file.
 #[derive(Clone, Debug)]
 pub struct SqliteIndex {
-    pool: SqlitePool,
+    pub(super) pool: SqlitePool,
 }
 
 impl SqliteIndex {

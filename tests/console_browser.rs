@@ -384,7 +384,7 @@ async fn screenshots() {
         }
     };
     // The queue with a job running.
-    let (_, v, _) = service_support::post(&c, &server, &service_support::slow_spec(40, 0.7)).await;
+    let (_, v, _) = service_support::post(&c, &server, &service_support::slow_spec(12, 0.7)).await;
     let slow = v["id"].as_str().unwrap().to_string();
     b.open(&server.base, "#/queue").await;
     b.wait_until(
@@ -399,8 +399,10 @@ async fn screenshots() {
     wait_done(&c, &server, &slow).await;
     b.open(&server.base, "#/cache").await;
     b.wait_until(
-        "cache thumbnails",
-        &images_loaded("#results img.thumb"),
+        "the visible cache thumbnails",
+        "const imgs = [...document.querySelectorAll('#results img.thumb')] \
+           .filter(i => i.getBoundingClientRect().top < innerHeight); \
+         return imgs.length > 0 && imgs.every(i => i.dataset.loaded === 'true');",
         WAIT,
     )
     .await;

@@ -411,64 +411,61 @@ async fn page(
     after: Option<Cursor>,
     limit: usize,
 ) -> Result<(Vec<BrdfSummary>, Option<String>), ApiError> {
-    let index = state.0.jobs.index();
-    let now = now_ms();
-    let mut matched: Vec<(JobRow, SpecSummary)> = Vec::new();
-    let keep = |row: JobRow, out: &mut Vec<(JobRow, SpecSummary)>| {
-        let spec = serde_json::from_str(&row.spec).unwrap_or(serde_json::Value::Null);
-        let summary = SpecSummary::of(&spec);
-        if filter.matches(&row.id, row.status.as_str(), &summary) {
-            out.push((row, summary));
-        }
+    // Newest first stops once the page (and one more, to know of a next
+    // page) is filled; largest first needs every row.
+    let (start, stop_at) = match (&after, sort) {
+        (Some(Cursor::Recent(at, id)), Sort::Recent) => (Some((*at, id.clone())), Some(limit)),
+        (_, Sort::Recent) => (None, Some(limit)),
+        (_, Sort::Size) => (None, None),
     };
-    match sort {
-        Sort::Recent => {
-            let mut key = match &after {
-                Some(Cursor::Recent(at, id)) => Some((*at, id.clone())),
-                _ => None,
-            };
-            loop {
-                let rows = index
-                    .list(key.as_ref().map(|(at, id)| (*at, id.as_str())), SCAN_BATCH)
-                    .await?;
-                let full = rows.len() as i64 == SCAN_BATCH;
-                key = rows.last().map(|r| (r.created_at, r.id.clone()));
-                for row in rows {
-                    keep(row, &mut matched);
-                }
-                if matched.len() > limit || !full {
-                    break;
-                }
-            }
-        }
-        Sort::Size => {
-            let mut key: Option<(i64, String)> = None;
-            loop {
-                let rows = index
-                    .list(key.as_ref().map(|(at, id)| (*at, id.as_str())), SCAN_BATCH)
-                    .await?;
-                let full = rows.len() as i64 == SCAN_BATCH;
-                key = rows.last().map(|r| (r.created_at, r.id.clone()));
-                for row in rows {
-                    keep(row, &mut matched);
-                }
-                if !full {
-                    break;
-                }
-            }
-            matched.sort_by(|(a, _), (b, _)| (size_key(b), &b.id).cmp(&(size_key(a), &a.id)));
-            if let Some(Cursor::Size(size, id)) = &after {
-                matched.retain(|(r, _)| (size_key(r), &r.id) < (*size, id));
-            }
+    let mut matched = scan(state, filter, start, stop_at).await?;
+    if sort == Sort::Size {
+        matched.sort_by(|(a, _), (b, _)| (size_key(b), &b.id).cmp(&(size_key(a), &a.id)));
+        if let Some(Cursor::Size(size, id)) = &after {
+            matched.retain(|(r, _)| (size_key(r), &r.id) < (*size, id));
         }
     }
     let next = (matched.len() > limit).then(|| Cursor::after(sort, &matched[limit - 1].0).text());
     matched.truncate(limit);
+    let now = now_ms();
     let items = matched
         .iter()
         .map(|(row, s)| BrdfSummary::of(row, s, now))
         .collect();
     Ok((items, next))
+}
+
+/// The rows passing `filter`, newest first, strictly after the
+/// `(created_at, id)` key `start`, read in keyset batches of [`SCAN_BATCH`]
+/// until more than `stop_at` have matched (`None`: to the end).
+async fn scan(
+    state: &AppState,
+    filter: &Filter,
+    mut start: Option<(i64, String)>,
+    stop_at: Option<usize>,
+) -> Result<Vec<(JobRow, SpecSummary)>, ApiError> {
+    let index = state.0.jobs.index();
+    let mut matched = Vec::new();
+    loop {
+        let rows = index
+            .list(
+                start.as_ref().map(|(at, id)| (*at, id.as_str())),
+                SCAN_BATCH,
+            )
+            .await?;
+        let full = rows.len() as i64 == SCAN_BATCH;
+        start = rows.last().map(|r| (r.created_at, r.id.clone()));
+        for row in rows {
+            let spec = serde_json::from_str(&row.spec).unwrap_or(serde_json::Value::Null);
+            let summary = SpecSummary::of(&spec);
+            if filter.matches(&row.id, row.status.as_str(), &summary) {
+                matched.push((row, summary));
+            }
+        }
+        if !full || stop_at.is_some_and(|n| matched.len() > n) {
+            return Ok(matched);
+        }
+    }
 }
 
 #[cfg(test)]

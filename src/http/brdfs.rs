@@ -427,12 +427,12 @@ pub async fn get_brdf(
     Ok(res)
 }
 
-fn etag_of(digest: &str) -> HeaderValue {
+pub(crate) fn etag_of(digest: &str) -> HeaderValue {
     HeaderValue::from_str(&format!("\"{digest}\"")).expect("hex digest")
 }
 
 /// Does an `If-None-Match` header match this digest (weak comparison)?
-fn none_match(headers: &HeaderMap, digest: &str) -> bool {
+pub(crate) fn none_match(headers: &HeaderMap, digest: &str) -> bool {
     headers
         .get_all(header::IF_NONE_MATCH)
         .iter()

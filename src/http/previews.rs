@@ -13,6 +13,7 @@
 //!   streams, times and error estimates), JSON.
 
 use super::AppState;
+use super::brdfs::{etag_of, none_match};
 use super::error::ApiError;
 use super::problem::Problem;
 use super::results::{require_done, row_of, table_of};
@@ -61,18 +62,13 @@ fn blocking_err(e: impl std::fmt::Display) -> ApiError {
 /// An image answer with its ETag (its SHA-256) and a day of caching: the
 /// bytes of a result's picture change only with the renderer's version.
 fn image(bytes: Vec<u8>, media_type: &'static str, digest: &str, headers: &HeaderMap) -> Response {
-    let etag = format!("\"{digest}\"");
-    let hit = headers
-        .get(header::IF_NONE_MATCH)
-        .and_then(|v| v.to_str().ok())
-        .is_some_and(|v| v.split(',').any(|t| t.trim() == etag || t.trim() == "*"));
-    let mut res = if hit {
+    let mut res = if none_match(headers, digest) {
         StatusCode::NOT_MODIFIED.into_response()
     } else {
         ([(header::CONTENT_TYPE, media_type)], bytes).into_response()
     };
     let h = res.headers_mut();
-    h.insert(header::ETAG, HeaderValue::from_str(&etag).expect("hex"));
+    h.insert(header::ETAG, etag_of(digest));
     h.insert(
         header::CACHE_CONTROL,
         HeaderValue::from_static("public, max-age=86400"),

@@ -53,6 +53,7 @@ pub fn run(a: &FetchArgs) -> Result<Value, String> {
     let options = FetchOptions {
         revalidate: a.revalidate,
         wait: a.wait.then(|| Duration::from_secs(a.wait_timeout_secs)),
+        token: None,
     };
     let f = fetch::fetch(&a.url, &dir, &options).map_err(|e| e.to_string())?;
     warn(&f);

@@ -203,23 +203,55 @@ fn read_field(path: &str) -> Result<FieldFile, String> {
 /// terminal, a progress bar while solving and a one-line summary at the end
 /// ([`summary_line`]).
 pub fn run(a: &SolveArgs) -> Result<Value, String> {
-    let started = Instant::now();
     let spec_path = a.spec.as_str();
     let text = std::fs::read_to_string(spec_path).map_err(|e| format!("{spec_path}: {e}"))?;
     let spec = material::parse(&text).map_err(|e| format!("{spec_path}: {e}"))?;
-    // Refuse before solving what the service or the solver would refuse
-    // (docs/spec.md).
-    check_stream_cap(&spec, a.max_streams).map_err(|e| format!("{spec_path}: {e}"))?;
-    plan::check_solvable(&spec, a.max_streams).map_err(|e| format!("{spec_path}: {e}"))?;
-    for (p, message) in plan::film_warnings(&spec) {
-        eprintln!("warning: {spec_path}: {p}: {message}");
-    }
     let points = a.points.as_deref().map(read_points).transpose()?;
     let field = a.field.as_deref().map(read_field).transpose()?;
+    let doc = document(
+        &spec,
+        spec_path,
+        points.as_deref(),
+        field.as_ref(),
+        a.table.as_deref(),
+        a.max_streams,
+    )?;
+    Ok(doc)
+}
 
-    let wavelengths = plan::wavelengths(&spec);
+/// The `solve --points` document (module doc) of a parsed spec at direction
+/// pairs, without files (the Python package's `polbrdf.solve`); `label`
+/// names the spec in messages.
+pub fn points_document(
+    spec: &Spec,
+    label: &str,
+    points: &[Point],
+    max_streams: usize,
+) -> Result<Value, String> {
+    document(spec, label, Some(points), None, None, max_streams)
+}
+
+/// The document of `run` for a parsed spec and parsed requests.
+fn document(
+    spec: &Spec,
+    spec_path: &str,
+    points: Option<&[Point]>,
+    field: Option<&FieldFile>,
+    table: Option<&str>,
+    max_streams: usize,
+) -> Result<Value, String> {
+    let started = Instant::now();
+    // Refuse before solving what the service or the solver would refuse
+    // (docs/spec.md).
+    check_stream_cap(spec, max_streams).map_err(|e| format!("{spec_path}: {e}"))?;
+    plan::check_solvable(spec, max_streams).map_err(|e| format!("{spec_path}: {e}"))?;
+    for (p, message) in plan::film_warnings(spec) {
+        eprintln!("warning: {spec_path}: {p}: {message}");
+    }
+
+    let wavelengths = plan::wavelengths(spec);
     let direct = points.is_some() || field.is_some();
-    let stages = wavelengths.len() * (usize::from(direct) + usize::from(a.table.is_some()));
+    let stages = wavelengths.len() * (usize::from(direct) + usize::from(table.is_some()));
     let progress = Progress::new(stages);
 
     let mut results = Vec::new();
@@ -229,12 +261,12 @@ pub fn run(a: &SolveArgs) -> Result<Value, String> {
         if direct {
             progress.stage(k, &stage_message("solving", wl, k, wavelengths.len()));
             let solved = solve_direct(
-                &spec,
+                spec,
                 spec_path,
                 wl,
-                points.as_deref(),
-                field.as_ref(),
-                a.max_streams,
+                points,
+                field,
+                max_streams,
                 &progress.within(k),
             )?;
             out.extend(solved);
@@ -243,7 +275,7 @@ pub fn run(a: &SolveArgs) -> Result<Value, String> {
     }
     let mut doc = json!({ "results": results });
 
-    if let Some(path) = &a.table {
+    if let Some(path) = table {
         let offset = if direct { wavelengths.len() } else { 0 };
         let on_progress = |k: usize, total: usize, x: f64| {
             progress.stage(
@@ -253,10 +285,10 @@ pub fn run(a: &SolveArgs) -> Result<Value, String> {
             progress.within(offset + k)(x);
         };
         let options = crate::brdf::table::BuildOptions {
-            max_streams: a.max_streams,
+            max_streams,
             on_progress: &on_progress,
         };
-        let (file, table) = super::export::write_table(&spec, spec_path, path, &options)?;
+        let (file, table) = super::export::write_table(spec, spec_path, path, &options)?;
         for r in doc["results"].as_array_mut().expect("results") {
             let wl = r["wavelength_nm"].as_f64();
             let meta = table

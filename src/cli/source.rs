@@ -67,6 +67,7 @@ impl CacheArgs {
                 options: FetchOptions {
                     revalidate: self.revalidate,
                     wait: None,
+                    token: None,
                 },
             })),
             None if self.revalidate => Err(format!(

@@ -25,7 +25,7 @@ pub use url::ResultUrl;
 use crate::brdf::{Table, format};
 use crate::digest::sha256_hex;
 use cache::CachePaths;
-use remote::TableAnswer;
+use remote::{Remote, TableAnswer};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
@@ -84,6 +84,9 @@ pub struct FetchOptions {
     /// Poll a queued or running job this long for its result instead of
     /// failing at once.
     pub wait: Option<Duration>,
+    /// Bearer token for a service that requires one for reads
+    /// (`--token-reads`).
+    pub token: Option<String>,
 }
 
 /// What [`fetch`] did.
@@ -153,14 +156,14 @@ pub fn verify(url: &str, bytes: &[u8], expected: &str) -> Result<Table, FetchErr
 /// The digest to verify a 200 answer against: its `ETag`, else the
 /// resource's `result.digest`.
 fn expected_digest(
-    agent: &ureq::Agent,
+    remote: &Remote,
     r: &ResultUrl,
     etag: Option<String>,
 ) -> Result<String, FetchError> {
     if let Some(e) = etag.filter(|e| !e.is_empty()) {
         return Ok(e);
     }
-    let (code, v) = remote::get_resource(agent, &r.resource())?;
+    let (code, v) = remote.get_resource(&r.resource())?;
     match v["result"]["digest"].as_str() {
         Some(d) if code == 200 => Ok(d.to_string()),
         _ => Err(FetchError::NoDigest { url: r.table() }),
@@ -172,7 +175,12 @@ fn expected_digest(
 /// answer has one (a URL that is not of the `…/v1/brdfs/ID` form is read
 /// as it is, as `polbrdf eval` always did).
 pub fn download(source: &str) -> Result<Table, FetchError> {
-    let agent = remote::agent();
+    download_with_token(source, None)
+}
+
+/// [`download`] from a service that wants a bearer token for reads.
+pub fn download_with_token(source: &str, token: Option<&str>) -> Result<Table, FetchError> {
+    let remote = Remote::new(token);
     let (url, parsed) = match ResultUrl::parse(source) {
         Ok(r) => (r.table(), Some(r)),
         Err(_) => {
@@ -185,11 +193,11 @@ pub fn download(source: &str) -> Result<Table, FetchError> {
             (url, None)
         }
     };
-    match remote::get_table(&agent, &url, None)? {
+    match remote.get_table(&url, None)? {
         TableAnswer::Body { bytes, etag } => {
             let expected = match (etag, &parsed) {
                 (Some(e), _) => e,
-                (None, Some(r)) => expected_digest(&agent, r, None)?,
+                (None, Some(r)) => expected_digest(&remote, r, None)?,
                 (None, None) => sha256_hex(&bytes),
             };
             verify(&url, &bytes, &expected)
@@ -230,13 +238,13 @@ fn unexpected(url: &str, a: TableAnswer) -> FetchError {
 
 /// Poll the job until it is done (`Ok`), failed or `deadline` passes.
 fn wait_done(
-    agent: &ureq::Agent,
+    remote: &Remote,
     r: &ResultUrl,
     started: Instant,
     deadline: Instant,
 ) -> Result<(), FetchError> {
     loop {
-        let (code, v) = remote::get_resource(agent, &r.resource())?;
+        let (code, v) = remote.get_resource(&r.resource())?;
         match v["status"].as_str() {
             Some("done") if code == 200 => return Ok(()),
             Some("failed") if code == 200 => {
@@ -292,7 +300,7 @@ pub fn fetch(url: &str, cache_dir: &Path, opts: &FetchOptions) -> Result<Fetched
     {
         return Ok(done(Outcome::Hit, &b, t, None, None));
     }
-    let agent = remote::agent();
+    let remote = Remote::new(opts.token.as_deref());
     let started = Instant::now();
     let table_url = r.table();
     let mut discarded = None;
@@ -316,13 +324,13 @@ pub fn fetch(url: &str, cache_dir: &Path, opts: &FetchOptions) -> Result<Fetched
             Some(ref c) => Some(sha256_hex(&c.0)),
             None => None,
         };
-        let answer = remote::get_table(&agent, &table_url, inm.as_deref());
+        let answer = remote.get_table(&table_url, inm.as_deref());
         let answer = match (answer, cached) {
             (Ok(TableAnswer::NotModified), Some((b, t))) => {
                 return Ok(done(Outcome::Revalidated, &b, t, discarded, None));
             }
             (Ok(TableAnswer::Body { bytes, etag }), cached) => {
-                let expected = expected_digest(&agent, &r, etag)?;
+                let expected = expected_digest(&remote, &r, etag)?;
                 let table = verify(&table_url, &bytes, &expected)?;
                 let outcome = match &cached {
                     None => Outcome::Miss,
@@ -363,7 +371,7 @@ pub fn fetch(url: &str, cache_dir: &Path, opts: &FetchOptions) -> Result<Fetched
                 };
                 // Others may use the cache (or wait too) meanwhile.
                 drop(lock);
-                wait_done(&agent, &r, started, started + wait)?;
+                wait_done(&remote, &r, started, started + wait)?;
                 std::thread::sleep(Duration::from_millis(100));
             }
             a => return Err(unexpected(&table_url, a)),

@@ -27,6 +27,33 @@ pub fn agent() -> ureq::Agent {
         .into()
 }
 
+/// The service as a render node talks to it: the [`agent`] and, for a
+/// service started with `--token-reads`, the bearer token sent with every
+/// request (docs/service.md, Authentication).
+#[derive(Clone, Debug)]
+pub struct Remote {
+    agent: ureq::Agent,
+    token: Option<String>,
+}
+
+impl Remote {
+    /// A client that sends `token` (if any) as `Authorization: Bearer`.
+    pub fn new(token: Option<&str>) -> Self {
+        Self {
+            agent: agent(),
+            token: token.filter(|t| !t.is_empty()).map(str::to_string),
+        }
+    }
+
+    fn get(&self, url: &str) -> ureq::RequestBuilder<ureq::typestate::WithoutBody> {
+        let req = self.agent.get(url);
+        match &self.token {
+            Some(t) => req.header("Authorization", format!("Bearer {t}")),
+            None => req,
+        }
+    }
+}
+
 /// What `GET …/table` answered.
 #[derive(Debug)]
 pub enum TableAnswer {
@@ -81,63 +108,65 @@ fn problem_of(body: &[u8]) -> (Option<String>, String) {
     }
 }
 
-/// `GET url` (a table URL), with `If-None-Match: "<digest>"` when given.
-pub fn get_table(
-    agent: &ureq::Agent,
-    url: &str,
-    if_none_match: Option<&str>,
-) -> Result<TableAnswer, FetchError> {
-    let mut req = agent.get(url);
-    if let Some(d) = if_none_match {
-        req = req.header("If-None-Match", format!("\"{d}\""));
-    }
-    let mut resp = req.call().map_err(|e| transport(url, e))?;
-    let status = resp.status().as_u16();
-    let etag = resp
-        .headers()
-        .get("etag")
-        .and_then(|v| v.to_str().ok())
-        .map(etag_digest);
-    let limit = if status == 200 {
-        MAX_TABLE_BYTES
-    } else {
-        MAX_SMALL_BODY
-    };
-    let mut body = Vec::new();
-    resp.body_mut()
-        .as_reader()
-        .take(limit)
-        .read_to_end(&mut body)
-        .map_err(|e| transport(url, format!("reading the body: {e}")))?;
-    Ok(match status {
-        200 => TableAnswer::Body { bytes: body, etag },
-        304 => TableAnswer::NotModified,
-        _ => match problem_of(&body) {
-            (Some(p), detail) if status == 409 && p == "not-ready" => {
-                TableAnswer::NotReady { detail }
-            }
-            (problem, detail) => TableAnswer::Status {
-                status,
-                problem,
-                detail,
+impl Remote {
+    /// `GET url` (a table URL), with `If-None-Match: "<digest>"` when given.
+    pub fn get_table(
+        &self,
+        url: &str,
+        if_none_match: Option<&str>,
+    ) -> Result<TableAnswer, FetchError> {
+        let mut req = self.get(url);
+        if let Some(d) = if_none_match {
+            req = req.header("If-None-Match", format!("\"{d}\""));
+        }
+        let mut resp = req.call().map_err(|e| transport(url, e))?;
+        let status = resp.status().as_u16();
+        let etag = resp
+            .headers()
+            .get("etag")
+            .and_then(|v| v.to_str().ok())
+            .map(etag_digest);
+        let limit = if status == 200 {
+            MAX_TABLE_BYTES
+        } else {
+            MAX_SMALL_BODY
+        };
+        let mut body = Vec::new();
+        resp.body_mut()
+            .as_reader()
+            .take(limit)
+            .read_to_end(&mut body)
+            .map_err(|e| transport(url, format!("reading the body: {e}")))?;
+        Ok(match status {
+            200 => TableAnswer::Body { bytes: body, etag },
+            304 => TableAnswer::NotModified,
+            _ => match problem_of(&body) {
+                (Some(p), detail) if status == 409 && p == "not-ready" => {
+                    TableAnswer::NotReady { detail }
+                }
+                (problem, detail) => TableAnswer::Status {
+                    status,
+                    problem,
+                    detail,
+                },
             },
-        },
-    })
-}
+        })
+    }
 
-/// `GET url` (a resource URL): the status code and the JSON body.
-pub fn get_resource(agent: &ureq::Agent, url: &str) -> Result<(u16, Value), FetchError> {
-    let mut resp = agent.get(url).call().map_err(|e| transport(url, e))?;
-    let status = resp.status().as_u16();
-    let mut body = Vec::new();
-    resp.body_mut()
-        .as_reader()
-        .take(MAX_SMALL_BODY)
-        .read_to_end(&mut body)
-        .map_err(|e| transport(url, format!("reading the body: {e}")))?;
-    let v = serde_json::from_slice(&body)
-        .unwrap_or_else(|_| Value::String(String::from_utf8_lossy(&body).into_owned()));
-    Ok((status, v))
+    /// `GET url` (a resource URL): the status code and the JSON body.
+    pub fn get_resource(&self, url: &str) -> Result<(u16, Value), FetchError> {
+        let mut resp = self.get(url).call().map_err(|e| transport(url, e))?;
+        let status = resp.status().as_u16();
+        let mut body = Vec::new();
+        resp.body_mut()
+            .as_reader()
+            .take(MAX_SMALL_BODY)
+            .read_to_end(&mut body)
+            .map_err(|e| transport(url, format!("reading the body: {e}")))?;
+        let v = serde_json::from_slice(&body)
+            .unwrap_or_else(|_| Value::String(String::from_utf8_lossy(&body).into_owned()));
+        Ok((status, v))
+    }
 }
 
 #[cfg(test)]

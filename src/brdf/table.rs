@@ -325,13 +325,34 @@ impl WavelengthTable {
                 weights.push((o, i, w));
             }
         }
+        // Offsets of the stencil's blocks at order 0; order `m` is `m`
+        // strides further (`WavelengthTable::offset`). The sums run in the
+        // same order for every layout, so a full 4 × 4 block (unrolled, for
+        // the renderer's millions of lookups) and a partial one give the
+        // same bits as the plain loop.
+        let stride = self.nodes * self.incident.len() * ns2;
+        let blocks: Vec<(usize, f64)> = weights
+            .iter()
+            .map(|&(o, i, w)| (self.offset(0, o, i), w))
+            .collect();
         (0..self.orders)
             .map(|m| {
                 let mut acc = [0.0; 16];
-                for &(o, i, w) in &weights {
-                    let b = self.offset(m, o, i);
-                    for (x, y) in acc.iter_mut().zip(&self.f[b..b + ns2]) {
-                        *x += w * y;
+                let at = m * stride;
+                if ns2 == 16 {
+                    for &(b, w) in &blocks {
+                        let y: &[f64; 16] = self.f[at + b..at + b + 16]
+                            .try_into()
+                            .expect("a 16-value block");
+                        for (x, y) in acc.iter_mut().zip(y) {
+                            *x += w * y;
+                        }
+                    }
+                } else {
+                    for &(b, w) in &blocks {
+                        for (x, y) in acc.iter_mut().zip(&self.f[at + b..at + b + ns2]) {
+                            *x += w * y;
+                        }
                     }
                 }
                 unflatten(&acc, self.ns, self.cols)
@@ -557,6 +578,34 @@ impl Table {
         Ok(f)
     }
 
+    /// [`Table::eval`] at one direction pair for several wavelengths (a
+    /// spectral renderer's lane): each wavelength block the wavelengths
+    /// need is evaluated once and shared, and every answer is the same, bit
+    /// for bit, as [`Table::eval`] at that wavelength.
+    pub fn eval_wavelengths(
+        &self,
+        d: &Directions,
+        wavelengths_nm: &[Option<f64>],
+    ) -> Result<Vec<Mueller>, BrdfError> {
+        d.validate()?;
+        let theta_i = self.incident_theta(d.theta_i_deg)?;
+        let dphi = dphi_prop_rad(d.phi_i_deg, d.phi_o_deg);
+        let mut blocks: Vec<Option<Mueller>> = vec![None; self.wavelengths.len()];
+        wavelengths_nm
+            .iter()
+            .map(|&wl| {
+                let mut f = [[0.0; 4]; 4];
+                for (k, w) in self.wavelength_weights(wl)? {
+                    let m = blocks[k].get_or_insert_with(|| {
+                        self.wavelengths[k].eval(&self.grid, theta_i, d.theta_o_deg, dphi)
+                    });
+                    add_scaled(&mut f, m, w);
+                }
+                Ok(f)
+            })
+            .collect()
+    }
+
     /// The specular matrix `S` (conventions §6: `∫ L_out dΩ = S F_beam`
     /// around the mirror direction) when the base is a mirror **and** `ω_o`
     /// is the mirror direction `(θ_i, φ_i + 180°)` of `ω_i` within
@@ -678,6 +727,42 @@ mod tests {
         );
         let spec = crate::material::parse(&text).unwrap();
         Table::from_spec(&spec, PolarGrid::graded(8).unwrap()).unwrap()
+    }
+
+    /// The shared-block evaluation is `eval` at each wavelength, bit for
+    /// bit, at nodes, between them and for a one-wavelength table; its
+    /// errors are `eval`'s.
+    #[test]
+    fn eval_wavelengths_is_eval_at_each_wavelength() {
+        let text = r#"{"layers": [{"optical_thickness": 0.4,
+             "scatterer": {"mie": {"material": {"n": 1.5, "k": 0.01}, "radius_um": 0.1}}}],
+             "base": {"lambertian": {"albedo": 0.2}}, "wavelengths_nm": [400, 500, 700],
+             "solver": {"streams": 4}}"#;
+        let spec = crate::material::parse(text).unwrap();
+        let t = Table::from_spec(&spec, PolarGrid::graded(8).unwrap()).unwrap();
+        let q = d(33.0, 12.0, 61.0, 250.0);
+        let wls = [
+            Some(450.0),
+            Some(400.0),
+            Some(650.0),
+            Some(450.0),
+            Some(700.0),
+        ];
+        let all = t.eval_wavelengths(&q, &wls).unwrap();
+        for (wl, m) in wls.iter().zip(&all) {
+            assert_eq!(*m, t.eval(&q, *wl).unwrap(), "{wl:?}");
+        }
+        assert!(all[0] != all[2]);
+        assert!(t.eval_wavelengths(&q, &[Some(800.0)]).is_err());
+        assert!(
+            t.eval_wavelengths(&d(95.0, 0.0, 10.0, 0.0), &[Some(450.0)])
+                .is_err()
+        );
+        let one = table("\"black\"");
+        assert_eq!(
+            one.eval_wavelengths(&q, &[None]).unwrap()[0],
+            one.eval(&q, None).unwrap()
+        );
     }
 
     fn d(ti: f64, pi: f64, to: f64, po: f64) -> Directions {

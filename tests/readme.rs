@@ -22,6 +22,10 @@
 //!   script waits for `/readyz`; `URL` names that port for the curl commands
 //!   (the README's `URL=${URL:-http://127.0.0.1:8080}`). A second `serve`
 //!   replaces the first.
+//! - `pip install ./python` builds and installs the Python package from the
+//!   repository's `python/` into a virtual environment of the scratch
+//!   directory (the run's build directory reused), and `python3` is then
+//!   that environment's interpreter (`pip` and `python3` shims).
 //! - Long work is shortened only by the variables the README shows
 //!   (`BENCH_STREAMS`, `BENCH_REPEAT`, `BENCH_X`, `SPP`).
 
@@ -151,6 +155,40 @@ esac
     )
 }
 
+/// The `pip` and `python3` stand-ins: `pip install ./python` builds the
+/// package from this repository's `python/` (maturin, in a virtual
+/// environment of the scratch directory, the run's build directory reused)
+/// and `python3` is then that environment's interpreter. The build runs with
+/// the real `cargo` on `PATH`, not the harness's shim.
+fn python_shims(repo: &Path, venv: &Path, target: &Path) -> (String, String) {
+    let pip = format!(
+        r#"#!/usr/bin/env bash
+set -e
+case "$*" in
+  "install ./python")
+    if [ ! -x "{venv}/bin/python" ]; then
+      /usr/bin/env -u VIRTUAL_ENV PATH="$READ_ME_SYSTEM_PATH" python3 -m venv "{venv}"
+      "{venv}/bin/pip" install -q --disable-pip-version-check 'maturin>=1.7,<2' numpy
+    fi
+    PATH="{venv}/bin:$READ_ME_SYSTEM_PATH" CARGO_TARGET_DIR="{target}" "{venv}/bin/pip" install -q --disable-pip-version-check --no-build-isolation "{repo}/python"
+    echo "readme: built and installed polbrdf from {repo}/python" ;;
+  *) echo "readme: 'pip $*' is not a command this harness can run" >&2; exit 1 ;;
+esac
+"#,
+        venv = venv.display(),
+        target = target.display(),
+        repo = repo.display()
+    );
+    let python = format!(
+        r#"#!/usr/bin/env bash
+test -x "{venv}/bin/python" || {{ echo "readme: python3 before 'pip install ./python'" >&2; exit 1; }}
+exec "{venv}/bin/python" "$@"
+"#,
+        venv = venv.display()
+    );
+    (pip, python)
+}
+
 fn copy_tree(from: &Path, to: &Path) {
     std::fs::create_dir_all(to).unwrap();
     for e in std::fs::read_dir(from).unwrap() {
@@ -196,6 +234,15 @@ fn every_readme_command_runs() {
     .unwrap();
     use std::os::unix::fs::PermissionsExt;
     std::fs::set_permissions(&shim, std::fs::Permissions::from_mode(0o755)).unwrap();
+    let target = std::env::var_os("CARGO_TARGET_DIR")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| repo.join("target"));
+    let (pip, python) = python_shims(&repo, &dir.join("python-venv"), &target);
+    for (name, text) in [("pip", pip), ("python3", python)] {
+        let p = shim_dir.join(name);
+        std::fs::write(&p, text).unwrap();
+        std::fs::set_permissions(&p, std::fs::Permissions::from_mode(0o755)).unwrap();
+    }
 
     let done = dir.join("done.txt");
     let mut script = String::from(
@@ -237,6 +284,10 @@ trap 'if [ -n "${SERVER_PID:-}" ]; then kill "$SERVER_PID" 2> /dev/null || true;
         .current_dir(&dir)
         .env("PATH", path)
         .env("CARGO_INSTALL_ROOT", dir.join("cargo-root"))
+        .env(
+            "READ_ME_SYSTEM_PATH",
+            std::env::var("PATH").unwrap_or_default(),
+        )
         .env("POLBRDF_LISTEN", format!("127.0.0.1:{port}"))
         .env("URL", format!("http://127.0.0.1:{port}"))
         .env("BENCH_STREAMS", "4,8")

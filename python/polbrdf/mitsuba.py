@@ -60,9 +60,12 @@ _D_V = np.array([1.0, 1.0, 1.0, -1.0])
 
 
 def _columns(v, n: int) -> np.ndarray:
-    """A Dr.Jit 3-vector (scalar or JIT) as an ``(n, 3)`` NumPy array."""
+    """A Dr.Jit direction (scalar or JIT 3-vector) as ``(n, 3)`` unit
+    vectors (Mitsuba's Stokes bases are defined for unit vectors)."""
     a = np.asarray(v, dtype=float)
     a = a[None, :] if a.ndim == 1 else a.T
+    norm = np.linalg.norm(a, axis=1, keepdims=True)
+    a = a / np.where(norm > 0, norm, 1.0)
     return np.ascontiguousarray(np.broadcast_to(a, (n, 3)))
 
 

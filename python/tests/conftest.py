@@ -14,7 +14,6 @@ import subprocess
 import numpy as np
 import pytest
 
-import polbrdf
 
 REPO = pathlib.Path(__file__).resolve().parents[2]
 
@@ -93,26 +92,25 @@ def _serve(data, *flags):
     return proc, line.split()[-1]
 
 
-@pytest.fixture(scope="session")
-def service(tmp_path_factory):
-    """The URL of a service whose writes need `TOKEN`."""
-    proc, url = _serve(tmp_path_factory.mktemp("service"))
+def _served(data, *flags):
+    proc, url = _serve(data, *flags)
     try:
         yield url
     finally:
         proc.terminate()
         proc.wait(timeout=30)
+
+
+@pytest.fixture(scope="session")
+def service(tmp_path_factory):
+    """The URL of a service whose writes need `TOKEN`."""
+    yield from _served(tmp_path_factory.mktemp("service"))
 
 
 @pytest.fixture(scope="session")
 def private_service(tmp_path_factory):
     """The URL of a service whose reads need `TOKEN` too (`--token-reads`)."""
-    proc, url = _serve(tmp_path_factory.mktemp("private"), "--token-reads")
-    try:
-        yield url
-    finally:
-        proc.terminate()
-        proc.wait(timeout=30)
+    yield from _served(tmp_path_factory.mktemp("private"), "--token-reads")
 
 
 @pytest.fixture(scope="session")

@@ -15,6 +15,7 @@
 """
 
 import copy
+import json
 import glob
 import math
 import os
@@ -23,7 +24,7 @@ import numpy as np
 import pytest
 
 import polbrdf
-from conftest import PAINT, cli, cli_eval
+from conftest import PAINT, TOKEN, cli, cli_eval
 
 try:
     import drjit as dr
@@ -50,6 +51,17 @@ def _llvm_available() -> bool:
         return True
     except Exception:  # noqa: BLE001 - Dr.Jit raises various types without LLVM
         return False
+
+
+def use_llvm(what: str) -> None:
+    """Switch to the LLVM variant with the plugin registered; without
+    libLLVM 19 skip loudly (fail under CI)."""
+    if not _llvm_available():
+        if os.environ.get("CI"):
+            pytest.fail(f"the {what} needs llvm_ad_spectral_polarized (libllvm19)")
+        pytest.skip(f"SKIPPED LOUDLY: no libLLVM 19, so the {what} did not run")
+    mi.set_variant(LLVM)
+    pm.register()
 
 
 VARIANTS = [SCALAR, LLVM]
@@ -117,6 +129,12 @@ def expected_mitsuba(f, light, view):
     r_in = stokes_rotator(signed_angle(k_in, x_in, mitsuba_basis(k_in)))
     r_out = stokes_rotator(signed_angle(k_out, x_out, mitsuba_basis(k_out)))
     return r_out @ m @ np.transpose(r_in, (0, 2, 1))
+
+
+def unit(v):
+    """Unit vectors, rounded to float32 as Mitsuba holds them."""
+    v = np.asarray(v, dtype=float)
+    return (v / np.linalg.norm(v, axis=1, keepdims=True)).astype(np.float32).astype(float)
 
 
 def random_hemisphere(rng, n, max_theta_deg=85.0):
@@ -269,12 +287,7 @@ def test_sampling_passes_the_chi_square_test(paint_files, silver_files, which, t
     lobe's samples are left out of the histogram, as its pdf excludes them;
     the rejection writes chi2_data.py into the working directory)."""
     monkeypatch.chdir(tmp_path)
-    if not _llvm_available():
-        if os.environ.get("CI"):
-            pytest.fail("the chi-square test needs llvm_ad_spectral_polarized (libllvm19)")
-        pytest.skip("SKIPPED LOUDLY: no libLLVM 19")
-    mi.set_variant(LLVM)
-    pm.register()
+    use_llvm("chi-square test")
     from mitsuba.chi2 import ChiSquareTest, SphericalDomain
 
     table = (paint_files if which == "paint" else silver_files)[1]
@@ -338,14 +351,9 @@ def sphere_scene(bsdf):
 
 
 def test_sphere_render_agrees_with_measured_polarized(tmp_path, workdir):
-    if not _llvm_available():
-        if os.environ.get("CI"):
-            pytest.fail("the render comparison needs llvm_ad_spectral_polarized (libllvm19)")
-        pytest.skip("SKIPPED LOUDLY: no libLLVM 19")
-    mi.set_variant(LLVM)
-    pm.register()
+    use_llvm("render comparison")
     spec = workdir / "paint5.json"
-    spec.write_text(__import__("json").dumps(PAINT5))
+    spec.write_text(json.dumps(PAINT5))
     table = workdir / "paint5.pbrdf"
     cli("solve", spec, "--table", table)
     export = tmp_path / "paint5.pbsdf"
@@ -354,7 +362,7 @@ def test_sphere_render_agrees_with_measured_polarized(tmp_path, workdir):
     theirs = mi.render(mi.load_dict(sphere_scene({"type": "measured_polarized", "filename": str(export)})), seed=1)
     a, b = np.array(ours), np.array(theirs)
     # Channels: RGB, then S0..S3 (each RGB) of the stokes integrator.
-    s0_a, s0_b = a[..., :3], b[..., :3]
+    s0_b = b[..., :3]
     scale = s0_b.max()
     assert scale > 0
     lit = s0_b[..., 1] > 1e-3 * scale
@@ -376,12 +384,7 @@ def test_mirror_sphere_path_traced_is_mitsubas_conductor(tmp_path):
     under a constant sky with the stokes integrator: every camera ray takes
     the delta lobe once, so the image (intensity and S1, S2 of the
     reflection) equals Mitsuba's conductor sphere to float precision."""
-    if not _llvm_available():
-        if os.environ.get("CI"):
-            pytest.fail("the path-traced comparison needs llvm_ad_spectral_polarized (libllvm19)")
-        pytest.skip("SKIPPED LOUDLY: no libLLVM 19")
-    mi.set_variant(LLVM)
-    pm.register()
+    use_llvm("path-traced comparison")
     path = tmp_path / "mirror.pbrdf"
     polbrdf.solve(SILVER_MIRROR).save(path)
 
@@ -399,3 +402,63 @@ def test_mirror_sphere_path_traced_is_mitsubas_conductor(tmp_path):
     diff = np.abs(ours - theirs).max() / scale
     print(f"mirror sphere vs conductor: {diff:.3g} of max S0")
     assert diff <= 1e-5, diff
+
+
+def test_plugin_loads_a_service_url_and_refuses_what_it_cannot_render(service, tmp_path):
+    """`{"type": "polbrdf", "url": ...}` fetches through the render-node
+    cache (`cache_dir`) and evaluates as the file does; a table of part of
+    the incident directions or of part of the Mueller matrix is refused by
+    name, and so is a spec with neither or both of filename and url."""
+    mi.set_variant(SCALAR)
+    pm.register()
+    client = polbrdf.Client(service, token=TOKEN)
+    spec = copy.deepcopy(PAINT)
+    spec["wavelengths_nm"] = [500, 600]
+    job = client.submit(spec)
+    client.wait(job, timeout_s=120)
+    url = f"{service}/v1/brdfs/{job['id']}"
+    local = tmp_path / "local.pbrdf"
+    polbrdf.solve(spec).save(local)
+    by_url = mi.load_dict({"type": "polbrdf", "url": url, "cache_dir": str(tmp_path / "cache")})
+    by_file = mi.load_dict({"type": "polbrdf", "filename": str(local)})
+    light = np.array([[0.3, 0.1, 0.9]])
+    view = np.array([[-0.5, 0.2, 0.8]])
+    wl = np.array([[510.0, 550.0, 590.0, 700.0]])
+    a = plugin_eval(by_url, light, view, wl, True)
+    b = plugin_eval(by_file, light, view, wl, True)
+    assert np.array_equal(a, b) and np.abs(a).max() > 0
+    assert any((tmp_path / "cache").iterdir())
+    partial = copy.deepcopy(spec)
+    partial["needs"]["theta_i_deg"] = [30.0]
+    polbrdf.solve(partial).save(tmp_path / "partial.pbrdf")
+    with pytest.raises(Exception, match="incident directions"):
+        mi.load_dict({"type": "polbrdf", "filename": str(tmp_path / "partial.pbrdf")})
+    scalar_only = copy.deepcopy(spec)
+    scalar_only["needs"]["stokes"] = "intensity"
+    polbrdf.solve(scalar_only).save(tmp_path / "intensity.pbrdf")
+    with pytest.raises(Exception, match="4x4 table"):
+        mi.load_dict({"type": "polbrdf", "filename": str(tmp_path / "intensity.pbrdf")})
+    with pytest.raises(Exception, match="exactly one"):
+        mi.load_dict({"type": "polbrdf"})
+
+
+def test_a_wavelength_free_table_renders_at_every_wavelength(variant, tmp_path):
+    spec = {
+        "layers": [{"optical_thickness": 2.0, "scatterer": {"rayleigh": {"albedo": 0.9}}}],
+        "base": {"lambertian": {"albedo": 0.5}},
+        "solver": {"streams": 8},
+        "needs": {"grid": {"polar_nodes": 16}},
+    }
+    path = tmp_path / "grey.pbrdf"
+    table = polbrdf.solve(spec)
+    assert len(table.wavelengths_nm) == 0
+    table.save(path)
+    bsdf = mi.load_dict({"type": "polbrdf", "filename": str(path)})
+    light = unit([[0.3, 0.1, 0.9], [0.0, 0.6, 0.8]])
+    view = unit([[-0.5, 0.2, 0.8], [0.6, 0.0, 0.8]])
+    wl = np.array([[400.0, 500.0, 600.0, 700.0], [380.0, 450.0, 720.0, 800.0]])
+    got = plugin_eval(bsdf, light, view, wl, variant == SCALAR)
+    f = table.eval(light, view)
+    want = expected_mitsuba(f, light, view)
+    for c in range(4):
+        assert np.abs(got[:, c] - want).max() <= 1e-6 * np.abs(f[:, 0, 0]).max()

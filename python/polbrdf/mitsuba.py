@@ -297,9 +297,15 @@ def _make_class(mi, dr):
             m[:, :, :, 3] *= -1.0
             return m
 
-        def _to_mitsuba(self, m, light, view):
+        def _to_mitsuba(self, m, light, view, ok):
             """Rotate ``(n, 4, 4, 4)`` matrices from the meridian frames into
-            Mitsuba's Stokes bases of the rays ``-light`` and ``view``."""
+            Mitsuba's Stokes bases of the rays ``-light`` and ``view``; 0 where
+            not ``ok`` (whose directions, e.g. the NaNs of inactive lanes,
+            are replaced by the normal so that no NaN leaks out)."""
+            normal = np.array([0.0, 0.0, 1.0])
+            light = np.where(ok[:, None], light, normal)
+            view = np.where(ok[:, None], view, normal)
+            m = np.where(ok[:, None, None, None], m, 0.0)
             lv, vv = to_vec(light), to_vec(view)
             k_in = -lv
             return mi.mueller.rotate_mueller_basis(
@@ -338,7 +344,7 @@ def _make_class(mi, dr):
             if not self._enabled(ctx, False):
                 ok[:] = False
             m = self._diffuse(light, view, self._wavelengths(si, n), ok, _columns(wo, n))
-            return self._to_mitsuba(m, light, view)
+            return self._to_mitsuba(m, light, view, ok)
 
         def pdf(self, ctx, si, wo, active=True):
             # The density is of the sampled direction `wo` given `si.wi`,
@@ -394,10 +400,9 @@ def _make_class(mi, dr):
                 w = None if wl is None else wl[idx].reshape(-1)
                 s = self.table.specular(np.repeat(light[idx], 4, axis=0), w, clamp_wavelength=True)
                 m[idx] = s.reshape(len(idx), 4, 4, 4) * _D_V[:, None] * _D_V[None, :]
-            good = diffuse | delta
-            scale = np.where(good & (pdf > 0), 1.0 / np.where(pdf > 0, pdf, 1.0), 0.0)
-            m *= scale[:, None, None, None]
-            weight = self._to_mitsuba(m, light, view)
+            live = (diffuse | delta) & (pdf > 0)
+            m *= np.where(live, 1.0 / np.where(live, pdf, 1.0), 0.0)[:, None, None, None]
+            weight = self._to_mitsuba(m, light, view, live)
 
             bs = dr.zeros(mi.BSDFSample3f) if scalar else dr.zeros(mi.BSDFSample3f, n)
             bs.wo = to_vec(sampled)
@@ -409,7 +414,7 @@ def _make_class(mi, dr):
             comps = np.where(delta | ~self.table.has_specular, 0, 1).astype(np.uint32)
             bs.sampled_type = mi.UInt32(int(types[0])) if scalar else mi.UInt32(types)
             bs.sampled_component = mi.UInt32(int(comps[0])) if scalar else mi.UInt32(comps)
-            return bs, dr.select(to_bool(good & (pdf > 0)), weight, 0.0)
+            return bs, dr.select(to_bool(live), weight, 0.0)
 
         def traverse(self, callback):
             pass

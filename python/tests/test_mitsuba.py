@@ -462,3 +462,25 @@ def test_a_wavelength_free_table_renders_at_every_wavelength(variant, tmp_path):
     want = expected_mitsuba(f, light, view)
     for c in range(4):
         assert np.abs(got[:, c] - want).max() <= 1e-6 * np.abs(f[:, 0, 0]).max()
+
+
+def test_inactive_and_nan_lanes_give_zeros_not_nans(paint_files):
+    """Lanes Mitsuba marks inactive (their directions may be NaN) and
+    directions below the surface evaluate, sample and weigh to 0, without
+    an exception and without a NaN in the other lanes."""
+    use_llvm("NaN-lane check")
+    bsdf = mi.load_dict({"type": "polbrdf", "filename": str(paint_files[1])})
+    view = np.array([[0.0, 0.6, 0.8], [np.nan, np.nan, np.nan], [0.0, 0.6, -0.8], [0.6, 0.0, 0.8]])
+    light = np.array([[0.3, 0.0, 0.9539392], [0.0, 0.0, 1.0], [0.0, 0.0, 1.0], [np.nan, 0.0, np.nan]])
+    wl = np.full((4, 4), 550.0)
+    ctx = mi.BSDFContext()
+    si = make_si(view, wl, False)
+    active = mi.Bool(np.array([True, False, True, True]))
+    m = to_np_mueller(bsdf.eval(ctx, si, mi.Vector3f(np.ascontiguousarray(light.T)), active), 4)
+    assert np.isfinite(m).all()
+    assert np.abs(m[0]).max() > 0 and np.all(m[1:] == 0)
+    p = np.array(bsdf.pdf(ctx, si, mi.Vector3f(np.ascontiguousarray(light.T)), active))
+    assert np.isfinite(p).all() and p[0] > 0 and np.all(p[1:] == 0)
+    bs, w = bsdf.sample(ctx, si, mi.Float([0.3] * 4), mi.Point2f([0.4] * 4, [0.6] * 4), active)
+    w = to_np_mueller(w, 4)
+    assert np.isfinite(w).all() and np.abs(w[0]).max() > 0 and np.all(w[1:3] == 0)

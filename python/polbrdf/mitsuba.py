@@ -202,10 +202,9 @@ def _make_class(mi, dr):
     scalar = variant.startswith("scalar")
 
     def to_spectrum(m: np.ndarray):
-        """``(n, 4 wavelengths, 4, 4)`` NumPy Mueller matrices as mi.Spectrum."""
-        a = np.ascontiguousarray(np.moveaxis(m, (2, 3), (0, 1)))  # (4, 4, n, 4)
-        a = np.ascontiguousarray(np.moveaxis(a, 2, 3))  # (4, 4, 4 wl, n)
-        return mi.Spectrum(a[..., 0] if scalar else a)
+        """Mueller matrices in mi.Spectrum's layout ``(4, 4, 4 wavelengths,
+        n lanes)`` as mi.Spectrum."""
+        return mi.Spectrum(m[..., 0] if scalar else m)
 
     def to_vec(a: np.ndarray):
         return mi.Vector3f(a[0]) if scalar else mi.Vector3f(np.ascontiguousarray(a.T))
@@ -273,39 +272,30 @@ def _make_class(mi, dr):
             return ctx.is_enabled(mi.BSDFFlags.GlossyReflection, index)
 
         def _diffuse(self, light, view, wl, ok, wo):
-            """``D f D cos`` in the meridian frames, ``(n, 4 wl, 4, 4)``, 0
-            where not ``ok``; the cosine is of Mitsuba's ``wo``, the
-            direction the integrator integrates over (the light in radiance
-            mode, the viewer side in importance mode), as Mitsuba's BSDFs
-            (``measured_polarized`` among them) do."""
-            n = light.shape[0]
-            m = np.zeros((n, 4, 4, 4))
-            idx = np.nonzero(ok)[0]
-            if len(idx):
-                if wl is None:
-                    f = self.table.eval(light[idx], view[idx])[:, None]
-                else:
-                    f = self.table._native.eval_spectral(
-                        np.ascontiguousarray(light[idx]),
-                        np.ascontiguousarray(view[idx]),
-                        np.ascontiguousarray(wl[idx]),
-                        True,
-                    )
-                cos = wo[idx, 2] / np.linalg.norm(wo[idx], axis=1)
-                m[idx] = f * cos[:, None, None, None]
-            m[:, :, 3, :] *= -1.0  # D f D, D = diag(1, 1, 1, -1)
-            m[:, :, :, 3] *= -1.0
-            return m
+            """``D f D cos`` in the meridian frames, float32 ``(4, 4, 4 wl,
+            n)`` (mi.Spectrum's layout), 0 where not ``ok``; the cosine is of
+            Mitsuba's ``wo``, the direction the integrator integrates over
+            (the light in radiance mode, the viewer side in importance mode),
+            as Mitsuba's BSDFs (``measured_polarized`` among them) do. The
+            lookups, the V flip and the cosine run in Rust
+            (``NativeTable.eval_mitsuba``)."""
+            return self.table._native.eval_mitsuba(
+                np.ascontiguousarray(light),
+                np.ascontiguousarray(view),
+                None if wl is None else np.ascontiguousarray(wl),
+                np.ascontiguousarray(wo[:, 2]),
+                np.ascontiguousarray(ok, dtype=bool),
+            )
 
         def _to_mitsuba(self, m, light, view, ok):
-            """Rotate ``(n, 4, 4, 4)`` matrices from the meridian frames into
+            """Rotate ``(4, 4, 4, n)`` matrices from the meridian frames into
             Mitsuba's Stokes bases of the rays ``-light`` and ``view``; 0 where
             not ``ok`` (whose directions, e.g. the NaNs of inactive lanes,
             are replaced by the normal so that no NaN leaks out)."""
             normal = np.array([0.0, 0.0, 1.0])
             light = np.where(ok[:, None], light, normal)
             view = np.where(ok[:, None], view, normal)
-            m = np.where(ok[:, None, None, None], m, 0.0)
+            m = np.where(ok, m, np.float32(0.0))
             lv, vv = to_vec(light), to_vec(view)
             k_in = -lv
             return mi.mueller.rotate_mueller_basis(
@@ -399,9 +389,10 @@ def _make_class(mi, dr):
                 idx = np.nonzero(delta)[0]
                 w = None if wl is None else wl[idx].reshape(-1)
                 s = self.table.specular(np.repeat(light[idx], 4, axis=0), w, clamp_wavelength=True)
-                m[idx] = s.reshape(len(idx), 4, 4, 4) * _D_V[:, None] * _D_V[None, :]
+                s = s.reshape(len(idx), 4, 4, 4) * _D_V[:, None] * _D_V[None, :]
+                m[:, :, :, idx] = np.transpose(s, (2, 3, 1, 0))  # (row, col, wl, lane)
             live = (diffuse | delta) & (pdf > 0)
-            m *= np.where(live, 1.0 / np.where(live, pdf, 1.0), 0.0)[:, None, None, None]
+            m *= np.where(live, 1.0 / np.where(live, pdf, 1.0), 0.0).astype(np.float32)
             weight = self._to_mitsuba(m, light, view, live)
 
             bs = dr.zeros(mi.BSDFSample3f) if scalar else dr.zeros(mi.BSDFSample3f, n)

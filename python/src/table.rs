@@ -225,6 +225,88 @@ impl NativeTable {
             .into_pyarray(py))
     }
 
+    /// For the Mitsuba plugin (`polbrdf.mitsuba`): `D f D · cos` at `n`
+    /// lanes (light `wi`, viewer `wo`, `(n, 3)`) and `c` wavelengths each
+    /// (`wavelength_nm` `(n, c)`, clamped to the table's range; `None` for a
+    /// wavelength-free table), with `D = diag(1, 1, 1, −1)` (Mitsuba's sign
+    /// of V, conventions §9) and `cos` `(n,)` the cosine Mitsuba's BSDFs
+    /// multiply by; float32 in `mi.Spectrum`'s layout `(4, 4, c, n)` (row,
+    /// column, wavelength, lane), still in the meridian frames of §5. Lanes
+    /// not `ok` are 0 and are not looked at (their directions may be NaN).
+    #[pyo3(signature = (wi, wo, wavelength_nm, cos, ok, wavelengths=4))]
+    #[allow(clippy::too_many_arguments)]
+    fn eval_mitsuba<'py>(
+        &self,
+        py: Python<'py>,
+        wi: PyReadonlyArray2<'py, f64>,
+        wo: PyReadonlyArray2<'py, f64>,
+        wavelength_nm: Option<PyReadonlyArray2<'py, f64>>,
+        cos: PyReadonlyArray1<'py, f64>,
+        ok: PyReadonlyArray1<'py, bool>,
+        wavelengths: usize,
+    ) -> PyResult<Bound<'py, PyArray4<f32>>> {
+        let (wi, wo, cos, ok) = (wi.as_array(), wo.as_array(), cos.as_array(), ok.as_array());
+        let n = ok.len();
+        let c = wavelength_nm.as_ref().map_or(wavelengths, |w| w.shape()[1]);
+        if wi.dim() != (n, 3) || wo.dim() != (n, 3) || cos.len() != n {
+            return Err(QueryError::new_err(format!(
+                "eval_mitsuba: wi {:?}, wo {:?}, cos {} for {n} lanes",
+                wi.dim(),
+                wo.dim(),
+                cos.len()
+            )));
+        }
+        let wl: Vec<Option<f64>> = match &wavelength_nm {
+            Some(w) if w.shape()[0] == n => {
+                self.clamped(w.as_array().iter().copied().collect(), true)
+            }
+            Some(w) => {
+                return Err(QueryError::new_err(format!(
+                    "wavelength_nm has {} rows for {n} lanes",
+                    w.shape()[0]
+                )));
+            }
+            None => vec![None; n * c],
+        };
+        let lanes: Vec<usize> = (0..n).filter(|&k| ok[k]).collect();
+        let dirs: Vec<([f64; 3], [f64; 3])> = lanes
+            .iter()
+            .map(|&k| {
+                let a = [wi[(k, 0)], wi[(k, 1)], wi[(k, 2)]];
+                let b = [wo[(k, 0)], wo[(k, 1)], wo[(k, 2)]];
+                (a, b)
+            })
+            .collect();
+        let table = &self.table;
+        let evaluated: Result<Vec<Vec<Mueller>>, (usize, BrdfError)> = py.detach(|| {
+            lanes
+                .par_iter()
+                .zip(&dirs)
+                .map(|(&k, &(a, b))| {
+                    table
+                        .eval_wavelengths(&pair(a, b), &wl[k * c..(k + 1) * c])
+                        .map_err(|e| (k, e))
+                })
+                .collect()
+        });
+        let evaluated = evaluated.map_err(|e| indexed(py, e))?;
+        let mut out = vec![0f32; 16 * c * n];
+        let sign = |p: usize| if p == 3 { -1.0 } else { 1.0 };
+        for (&k, ms) in lanes.iter().zip(&evaluated) {
+            for (w, m) in ms.iter().enumerate() {
+                for (p, row) in m.iter().enumerate() {
+                    for (q, &x) in row.iter().enumerate() {
+                        let v = x * sign(p) * sign(q) * cos[k];
+                        out[((p * 4 + q) * c + w) * n + k] = v as f32;
+                    }
+                }
+            }
+        }
+        Ok(Array4::from_shape_vec((4, 4, c, n), out)
+            .expect("4 x 4 x c x n values")
+            .into_pyarray(py))
+    }
+
     /// The same at `n` pairs of graphics angles: `angles_deg` of shape
     /// `(n, 4)`, columns `theta_i_deg, phi_i_deg, theta_o_deg, phi_o_deg`.
     #[pyo3(signature = (angles_deg, wavelength_nm=None, clamp_wavelength=false))]

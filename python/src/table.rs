@@ -175,56 +175,6 @@ impl NativeTable {
         Ok(to_array(py, m))
     }
 
-    /// The diffuse BRDF at `n` direction pairs for `c` wavelengths each
-    /// (`wavelength_nm` of shape `(n, c)`, a spectral renderer's lanes): an
-    /// `(n, c, 4, 4)` array, each matrix what [`NativeTable::eval_flat`]
-    /// gives at that wavelength; a wavelength block is evaluated once per
-    /// pair however many of the `c` wavelengths need it
-    /// ([`Table::eval_wavelengths`]).
-    #[pyo3(signature = (wi, wo, wavelength_nm, clamp_wavelength=false))]
-    fn eval_spectral<'py>(
-        &self,
-        py: Python<'py>,
-        wi: PyReadonlyArray2<'py, f64>,
-        wo: PyReadonlyArray2<'py, f64>,
-        wavelength_nm: PyReadonlyArray2<'py, f64>,
-        clamp_wavelength: bool,
-    ) -> PyResult<Bound<'py, PyArray4<f64>>> {
-        let wi = directions("wi", &wi)?;
-        let wo = directions("wo", &wo)?;
-        let (n, c) = (wavelength_nm.shape()[0], wavelength_nm.shape()[1]);
-        if wi.len() != n || wo.len() != n {
-            return Err(QueryError::new_err(format!(
-                "wi has {} directions, wo {} and wavelength_nm {n} rows",
-                wi.len(),
-                wo.len()
-            )));
-        }
-        let flat: Vec<f64> = wavelength_nm.as_array().iter().copied().collect();
-        let wl = self.clamped(flat, clamp_wavelength);
-        let table = &self.table;
-        let rows: Result<Vec<Vec<Mueller>>, (usize, BrdfError)> = py.detach(|| {
-            (0..n)
-                .into_par_iter()
-                .map(|k| {
-                    table
-                        .eval_wavelengths(&pair(wi[k], wo[k]), &wl[k * c..(k + 1) * c])
-                        .map_err(|e| (k, e))
-                })
-                .collect()
-        });
-        let flat: Vec<f64> = rows
-            .map_err(|e| indexed(py, e))?
-            .into_iter()
-            .flatten()
-            .flatten()
-            .flatten()
-            .collect();
-        Ok(Array4::from_shape_vec((n, c, 4, 4), flat)
-            .expect("n x c 4x4 matrices")
-            .into_pyarray(py))
-    }
-
     /// For the Mitsuba plugin (`polbrdf.mitsuba`): `D f D · cos` at `n`
     /// lanes (light `wi`, viewer `wo`, `(n, 3)`) and `c` wavelengths each
     /// (`wavelength_nm` `(n, c)`, clamped to the table's range; `None` for a

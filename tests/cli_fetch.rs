@@ -1,8 +1,9 @@
 //! `polbrdf fetch` and `--cache-dir` against a real `polbrdf serve`: a miss
 //! downloads and verifies, a hit asks the service nothing, eight processes
 //! at once make one download, the cache works with the service stopped, a
-//! corrupted file is downloaded again (or refused offline), and `eval` /
-//! `export` through the cache agree with a local file.
+//! corrupted file is downloaded again (or refused offline), `eval` /
+//! `export` through the cache agree with a local file, and a service with
+//! private reads (`--token-reads`) is read with `POLBRDF_TOKEN`.
 
 mod service_support;
 
@@ -15,9 +16,18 @@ const TABLE_GETS: &str =
     "polbrdf_http_requests_total{method=\"GET\",route=\"/v1/brdfs/{id}/table\",status=\"200\"}";
 
 fn polbrdf(args: &[&str]) -> Output {
+    polbrdf_with(args, None)
+}
+
+/// The binary with `POLBRDF_TOKEN` set to `token` (or unset).
+fn polbrdf_with(args: &[&str], token: Option<&str>) -> Output {
     let mut c = Command::new(env!("CARGO_BIN_EXE_polbrdf"));
     c.args(args);
     c.env_remove("POLBRDF_CACHE_DIR");
+    match token {
+        Some(t) => c.env("POLBRDF_TOKEN", t),
+        None => c.env_remove("POLBRDF_TOKEN"),
+    };
     c.output().unwrap()
 }
 
@@ -269,4 +279,70 @@ fn bad_urls_and_missing_cache_dirs_are_refused() {
         String::from_utf8_lossy(&o.stderr).contains("--cache-dir"),
         "{o:?}"
     );
+}
+
+#[tokio::test(flavor = "multi_thread")]
+async fn a_service_with_private_reads_is_read_with_polbrdf_token() {
+    let data = TempDir::new("fetch-private");
+    let cache = TempDir::new("fetch-private-cache");
+    let s = Server::start(&data.0, &["--token-reads"], &[("POLBRDF_TOKEN", "s3cret")]);
+    let mut h = reqwest::header::HeaderMap::new();
+    h.insert(
+        reqwest::header::AUTHORIZATION,
+        "Bearer s3cret".parse().unwrap(),
+    );
+    let c = reqwest::Client::builder()
+        .default_headers(h)
+        .build()
+        .unwrap();
+    let (code, v, _) = post(&c, &s, TINY).await;
+    assert!(code == 200 || code == 202, "{code} {v}");
+    let id = v["id"].as_str().unwrap().to_string();
+    wait_done(&c, &s, &id).await;
+    let url = s.url(&format!("/v1/brdfs/{id}"));
+    let eval = [
+        "eval",
+        url.as_str(),
+        "--theta-i",
+        "30",
+        "--phi-i",
+        "0",
+        "--theta-o",
+        "45",
+        "--phi-o",
+        "180",
+    ];
+    // Without the token every read is refused, and the message says why.
+    for o in [
+        polbrdf_with(&eval, None),
+        polbrdf_with(
+            &["fetch", &url, "--cache-dir", cache.0.to_str().unwrap()],
+            None,
+        ),
+    ] {
+        assert!(!o.status.success(), "{o:?}");
+        assert!(String::from_utf8_lossy(&o.stderr).contains("401"), "{o:?}");
+    }
+    // With it: a download, and a fetch through the cache (miss, then hit).
+    let direct = ok_json(&polbrdf_with(&eval, Some("s3cret")));
+    let f = ok_json(&polbrdf_with(
+        &["fetch", &url, "--cache-dir", cache.0.to_str().unwrap()],
+        Some("s3cret"),
+    ));
+    assert_eq!(f["cache"], "miss", "{f}");
+    let mut cached_eval = eval.to_vec();
+    cached_eval.extend(["--cache-dir", cache.0.to_str().unwrap()]);
+    let cached = ok_json(&polbrdf_with(&cached_eval, Some("s3cret")));
+    assert_eq!(cached["mueller"], direct["mueller"]);
+    let again = ok_json(&polbrdf_with(
+        &[
+            "fetch",
+            &url,
+            "--cache-dir",
+            cache.0.to_str().unwrap(),
+            "--revalidate",
+        ],
+        Some("s3cret"),
+    ));
+    assert_eq!(again["cache"], "revalidated", "{again}");
 }

@@ -53,7 +53,7 @@ pub fn run(a: &FetchArgs) -> Result<Value, String> {
     let options = FetchOptions {
         revalidate: a.revalidate,
         wait: a.wait.then(|| Duration::from_secs(a.wait_timeout_secs)),
-        token: None,
+        token: super::source::token_from_env(),
     };
     let f = fetch::fetch(&a.url, &dir, &options).map_err(|e| e.to_string())?;
     warn(&f);

@@ -15,6 +15,15 @@ use std::path::PathBuf;
 /// The environment variable naming the cache directory when `--cache-dir`
 /// is not given.
 pub const CACHE_DIR_ENV: &str = "POLBRDF_CACHE_DIR";
+/// The bearer token sent with downloads from a service URL: the service's
+/// own `POLBRDF_TOKEN`, which a service started with `--token-reads` asks
+/// of every read (docs/deploy.md, Render nodes).
+pub const TOKEN_ENV: &str = "POLBRDF_TOKEN";
+
+/// The token of [`TOKEN_ENV`], if set and not empty.
+pub fn token_from_env() -> Option<String> {
+    std::env::var(TOKEN_ENV).ok().filter(|t| !t.is_empty())
+}
 
 /// The cache flags of the commands that take a table (`eval`, `export`,
 /// `render`).
@@ -67,7 +76,7 @@ impl CacheArgs {
                 options: FetchOptions {
                     revalidate: self.revalidate,
                     wait: None,
-                    token: None,
+                    token: token_from_env(),
                 },
             })),
             None if self.revalidate => Err(format!(
@@ -106,7 +115,8 @@ pub fn load_table_with(source: &str, cache: Option<&Cache>) -> Result<Table, Str
         return format::read_file(source).map_err(|e| e.to_string());
     }
     let Some(c) = cache else {
-        return fetch::download(source).map_err(|e| e.to_string());
+        return fetch::download_with_token(source, token_from_env().as_deref())
+            .map_err(|e| e.to_string());
     };
     let f = fetch::fetch(source, &c.dir, &c.options).map_err(|e| e.to_string())?;
     warn(&f);

@@ -12,6 +12,18 @@ use service_support::*;
 use std::path::Path;
 use std::process::{Command, Output};
 
+/// The direction pair the `eval` commands here ask for.
+const EVAL_PAIR: [&str; 8] = [
+    "--theta-i",
+    "30",
+    "--phi-i",
+    "0",
+    "--theta-o",
+    "45",
+    "--phi-o",
+    "180",
+];
+
 const TABLE_GETS: &str =
     "polbrdf_http_requests_total{method=\"GET\",route=\"/v1/brdfs/{id}/table\",status=\"200\"}";
 
@@ -145,16 +157,7 @@ async fn fetch_caches_verifies_locks_and_works_offline() {
     );
 
     // eval and export through the cache (the env var) = on the local file.
-    let eval_args = [
-        "--theta-i",
-        "30",
-        "--phi-i",
-        "0",
-        "--theta-o",
-        "45",
-        "--phi-o",
-        "180",
-    ];
+    let eval_args = EVAL_PAIR;
     let mut a = vec!["eval", local.to_str().unwrap()];
     a.extend_from_slice(&eval_args);
     let want = ok_json(&polbrdf(&a));
@@ -300,18 +303,8 @@ async fn a_service_with_private_reads_is_read_with_polbrdf_token() {
     let id = v["id"].as_str().unwrap().to_string();
     wait_done(&c, &s, &id).await;
     let url = s.url(&format!("/v1/brdfs/{id}"));
-    let eval = [
-        "eval",
-        url.as_str(),
-        "--theta-i",
-        "30",
-        "--phi-i",
-        "0",
-        "--theta-o",
-        "45",
-        "--phi-o",
-        "180",
-    ];
+    let mut eval = vec!["eval", url.as_str()];
+    eval.extend(EVAL_PAIR);
     // Without the token every read is refused, and the message says why.
     for o in [
         polbrdf_with(&eval, None),
@@ -330,7 +323,7 @@ async fn a_service_with_private_reads_is_read_with_polbrdf_token() {
         Some("s3cret"),
     ));
     assert_eq!(f["cache"], "miss", "{f}");
-    let mut cached_eval = eval.to_vec();
+    let mut cached_eval = eval.clone();
     cached_eval.extend(["--cache-dir", cache.0.to_str().unwrap()]);
     let cached = ok_json(&polbrdf_with(&cached_eval, Some("s3cret")));
     assert_eq!(cached["mueller"], direct["mueller"]);

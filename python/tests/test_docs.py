@@ -38,3 +38,14 @@ def test_docs_python_md_runs(service, tmp_path, monkeypatch):
     assert namespace["m"].shape == (9, 4, 4)
     assert namespace["table"].outcome == "miss"
     assert namespace["image"].shape[-1] == 3 + 12
+
+
+def test_the_package_readme_runs(tmp_path, monkeypatch):
+    """python/README.md (the package's page): its example runs."""
+    monkeypatch.chdir(tmp_path)
+    text = (REPO / "python" / "README.md").read_text()
+    code = re.findall(r"```python\n(.*?)```", text, flags=re.S)
+    assert code
+    namespace = {}
+    exec(compile("\n".join(code), "python/README.md", "exec"), namespace)
+    assert namespace["m"].shape == (4, 4) and namespace["m"][0, 0] > 0

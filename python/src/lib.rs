@@ -20,7 +20,6 @@ use polbrdf::brdf::{BrdfError, Table, table::BuildOptions};
 use polbrdf::cli;
 use polbrdf::fetch::{self, FetchOptions};
 use polbrdf::material::{self, Spec, SpecError as RustSpecError};
-use polbrdf::plan;
 use pyo3::create_exception;
 use pyo3::exceptions::PyException;
 use pyo3::prelude::*;
@@ -78,8 +77,7 @@ pub(crate) fn brdf_error(py: Python<'_>, e: BrdfError) -> PyErr {
 /// solver cannot take (docs/spec.md).
 fn checked_spec(py: Python<'_>, text: &str, max_streams: usize) -> PyResult<Spec> {
     let spec = material::parse(text).map_err(|e| spec_error(py, &e))?;
-    cli::solve::check_stream_cap(&spec, max_streams).map_err(|e| spec_error(py, &e))?;
-    plan::check_solvable(&spec, max_streams).map_err(|e| spec_error(py, &e))?;
+    cli::solve::check(&spec, max_streams).map_err(|e| spec_error(py, &e))?;
     Ok(spec)
 }
 
@@ -214,7 +212,7 @@ fn load_table(
             fetch::fetch(source, Path::new(&dir), &options)
                 .map(|f| (f.table, Some(f.outcome.name().to_string())))
         }
-        None => fetch::download_with_token(source, token.as_deref()).map(|t| (t, None)),
+        None => fetch::download(source, token.as_deref()).map(|t| (t, None)),
     });
     let (table, outcome) = fetched.map_err(|e| FetchError::new_err(e.to_string()))?;
     Ok((NativeTable::new(table), outcome))

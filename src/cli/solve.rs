@@ -219,16 +219,24 @@ pub fn run(a: &SolveArgs) -> Result<Value, String> {
     Ok(doc)
 }
 
-/// The `solve --points` document (module doc) of a parsed spec at direction
-/// pairs, without files (the Python package's `polbrdf.solve`); `label`
-/// names the spec in messages.
+/// What `solve` refuses before solving, as the service or the solver would
+/// (docs/spec.md): more streams than `max_streams`, or a problem the solver
+/// cannot take.
+pub fn check(spec: &Spec, max_streams: usize) -> Result<(), SpecError> {
+    check_stream_cap(spec, max_streams)?;
+    plan::check_solvable(spec, max_streams)
+}
+
+/// The `solve --points` document (module doc) of a spec that [`check`]
+/// accepted, at direction pairs, without files (the Python package's
+/// `polbrdf.solve`); `label` names the spec in messages.
 pub fn points_document(
     spec: &Spec,
     label: &str,
     points: &[Point],
     max_streams: usize,
 ) -> Result<Value, String> {
-    document(spec, label, Some(points), None, None, max_streams)
+    checked_document(spec, label, Some(points), None, None, max_streams)
 }
 
 /// The document of `run` for a parsed spec and parsed requests.
@@ -240,11 +248,20 @@ fn document(
     table: Option<&str>,
     max_streams: usize,
 ) -> Result<Value, String> {
+    check(spec, max_streams).map_err(|e| format!("{spec_path}: {e}"))?;
+    checked_document(spec, spec_path, points, field, table, max_streams)
+}
+
+/// [`document`] after [`check`].
+fn checked_document(
+    spec: &Spec,
+    spec_path: &str,
+    points: Option<&[Point]>,
+    field: Option<&FieldFile>,
+    table: Option<&str>,
+    max_streams: usize,
+) -> Result<Value, String> {
     let started = Instant::now();
-    // Refuse before solving what the service or the solver would refuse
-    // (docs/spec.md).
-    check_stream_cap(spec, max_streams).map_err(|e| format!("{spec_path}: {e}"))?;
-    plan::check_solvable(spec, max_streams).map_err(|e| format!("{spec_path}: {e}"))?;
     for (p, message) in plan::film_warnings(spec) {
         eprintln!("warning: {spec_path}: {p}: {message}");
     }

@@ -115,8 +115,7 @@ pub fn load_table_with(source: &str, cache: Option<&Cache>) -> Result<Table, Str
         return format::read_file(source).map_err(|e| e.to_string());
     }
     let Some(c) = cache else {
-        return fetch::download_with_token(source, token_from_env().as_deref())
-            .map_err(|e| e.to_string());
+        return fetch::download(source, token_from_env().as_deref()).map_err(|e| e.to_string());
     };
     let f = fetch::fetch(source, &c.dir, &c.options).map_err(|e| e.to_string())?;
     warn(&f);

@@ -173,13 +173,9 @@ fn expected_digest(
 /// Download and verify a table without a cache. `source` is a service URL
 /// in either form; the bytes are checked against the `ETag` when the
 /// answer has one (a URL that is not of the `…/v1/brdfs/ID` form is read
-/// as it is, as `polbrdf eval` always did).
-pub fn download(source: &str) -> Result<Table, FetchError> {
-    download_with_token(source, None)
-}
-
-/// [`download`] from a service that wants a bearer token for reads.
-pub fn download_with_token(source: &str, token: Option<&str>) -> Result<Table, FetchError> {
+/// as it is, as `polbrdf eval` always did). `token` is sent as the bearer
+/// token (a service started with `--token-reads` wants it).
+pub fn download(source: &str, token: Option<&str>) -> Result<Table, FetchError> {
     let remote = Remote::new(token);
     let (url, parsed) = match ResultUrl::parse(source) {
         Ok(r) => (r.table(), Some(r)),

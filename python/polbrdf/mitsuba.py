@@ -317,14 +317,15 @@ def _make_class(mi, dr):
                 return a, b
             return b, a
 
-        def _pdf(self, known, sampled, n):
-            """The pdf (per steradian) of sampling ``sampled`` given ``known``."""
+        def _pdf(self, known, sampled):
+            """The pdf (per steradian) of sampling the unit vectors
+            ``sampled`` given ``known``: |dphi| is the sampled azimuth's
+            distance from the mirror side, wrapped to [0, pi]."""
             k = self.density.node(known)
-            mu = sampled[:, 2] / np.linalg.norm(sampled, axis=1)
             phi_k = np.arctan2(known[:, 1], known[:, 0])
             phi_s = np.arctan2(sampled[:, 1], sampled[:, 0])
-            dphi = np.abs(np.angle(np.exp(1j * (phi_s - phi_k - math.pi))))
-            return (1.0 - self.density.p_spec[k]) * self.density.density(k, mu, dphi)
+            dphi = np.abs(np.remainder(phi_s - phi_k, 2.0 * math.pi) - math.pi)
+            return (1.0 - self.density.p_spec[k]) * self.density.density(k, sampled[:, 2], dphi)
 
         # -- the BSDF interface --------------------------------------------
         def eval(self, ctx, si, wo, active=True):
@@ -344,7 +345,7 @@ def _make_class(mi, dr):
             ok = _lanes(active, n).astype(bool) & (known[:, 2] > 0) & (sampled[:, 2] > 0)
             p = np.zeros(n)
             if self._enabled(ctx, False) and ok.any():
-                p[ok] = self._pdf(known[ok], sampled[ok], int(ok.sum()))
+                p[ok] = self._pdf(known[ok], sampled[ok])
             return to_float(p)
 
         def eval_pdf(self, ctx, si, wo, active=True):
@@ -359,9 +360,10 @@ def _make_class(mi, dr):
             k = self.density.node(known)
             want_delta = self._enabled(ctx, True)
             want_diffuse = self._enabled(ctx, False)
-            p_spec = np.where(want_delta, self.density.p_spec[k], 0.0)
-            if not want_diffuse:
-                p_spec = np.where(want_delta, 1.0, 0.0) * np.ones(n)
+            if want_diffuse:
+                p_spec = self.density.p_spec[k] if want_delta else np.zeros(n)
+            else:
+                p_spec = np.full(n, 1.0 if want_delta else 0.0)
             delta = ok & (u1 < p_spec)
             diffuse = ok & ~delta & want_diffuse
             rest = np.clip((u1 - p_spec) / np.maximum(1.0 - p_spec, 1e-300), 0.0, 1.0)
@@ -376,7 +378,7 @@ def _make_class(mi, dr):
             # Pdf (solid angle for the diffuse lobe, discrete for the delta).
             pdf = np.zeros(n)
             if diffuse.any():
-                pdf[diffuse] = self._pdf(known[diffuse], sampled[diffuse], int(diffuse.sum()))
+                pdf[diffuse] = self._pdf(known[diffuse], sampled[diffuse])
             pdf[delta] = p_spec[delta]
             # Weight: f cos / pdf in the ray bases (radiance: light = sampled).
             if ctx.mode == mi.TransportMode.Importance:
